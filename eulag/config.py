@@ -1,0 +1,827 @@
+"""Case files (TOML) -> frozen, validated case objects.
+
+A case file has a few top-level keys (``name``, ``description``) and the tables
+``[pipe]``, ``[gas]``, ``[particles]`` (absent: single-phase), ``[walls]``,
+``[physics]`` and ``[numerics]``; DESIGN.md lists the core keys. Every value is
+checked for type, unit sense and range when the case is built, before any work
+starts. Anything wrong raises :class:`CaseError` with a one-line message naming
+the key (dotted, e.g. ``pipe.diameter``), the value and what is allowed::
+
+    pipe.diameter = -0.03: out of range; allowed: a number > 0 and <= 5 (inner diameter, m)
+
+Typing rules: a boolean is not an integer; an integer is accepted where a number
+(float) is expected and stored as a float; a float is not accepted where an
+integer is expected. NaN and infinities are rejected everywhere.
+
+All quantities are SI (m, kg m-3, Pa s, m s-1, ...); the one exception is
+``walls.roughness_angle_std_deg`` [degrees].
+
+Usage::
+
+    case = Case.from_toml("cases/single_phase_pipe.toml")
+    case.pipe.diameter            # 0.0305 [m]
+    attrs = case.to_attrs()       # flat {"pipe.diameter": 0.0305, ...} for NetCDF
+    Case.from_attrs(attrs) == case
+    lighter = case.replace(numerics={"parcels": 20000})
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import re
+import tomllib
+from dataclasses import MISSING, dataclass, field, fields
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+__all__ = [
+    "CaseError",
+    "Case",
+    "PipeConfig",
+    "GasConfig",
+    "ParticleConfig",
+    "WallConfig",
+    "PhysicsConfig",
+    "NumericsConfig",
+]
+
+#: directory of the case files shipped with eulag (the ``cases`` package)
+CASES_DIR = Path(__file__).resolve().parent.parent / "cases"
+
+
+class CaseError(ValueError):
+    """A case file or case value is not acceptable. The message is one line."""
+
+    def __init__(self, message: str):
+        super().__init__(" ".join(str(message).split()))
+
+
+# ---------------------------------------------------------------------------
+# field specifications
+# ---------------------------------------------------------------------------
+
+NUMBER, INTEGER, BOOLEAN, STRING, NUMBERS = "number", "integer", "boolean", "string", "numbers"
+
+
+def _param(kind: str, doc: str, *, default: Any = MISSING, unit: str = "", gt=None, ge=None,
+           lt=None, le=None, choices: tuple[str, ...] | None = None, even: bool = False,
+           optional: bool = False, none_label: str = "none", min_items: int = 0):
+    """A dataclass field carrying its validation rule in ``metadata``.
+
+    ``optional``: the value may be absent (None); ``none_label`` is how None is written
+    into the dataset attributes. A field with default None that is not ``optional`` is an
+    automatic default, resolved by the class from other fields.
+    """
+    meta = dict(kind=kind, doc=doc, unit=unit, gt=gt, ge=ge, lt=lt, le=le, choices=choices,
+                even=even, optional=optional, none_label=none_label, min_items=min_items)
+    if default is MISSING:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def _fmt(value: Any) -> str:
+    """A value as it would be written in TOML, on one short line."""
+    if isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, str):
+        text = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    elif isinstance(value, (list, tuple)):
+        text = "[" + ", ".join(_fmt(v) for v in value) + "]"
+    elif isinstance(value, dict):
+        text = "{" + ", ".join(f"{k} = {_fmt(v)}" for k, v in value.items()) + "}"
+    elif isinstance(value, float):
+        text = repr(value)
+    else:
+        text = str(value)
+    text = " ".join(text.split())
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _num(x) -> str:
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
+
+def _allowed(meta: dict) -> str:
+    """Human description of what a field accepts, e.g. 'a number > 0 and <= 5 (diameter, m)'."""
+    kind = meta["kind"]
+    if meta["choices"]:
+        text = "one of " + ", ".join(f'"{c}"' for c in meta["choices"])
+    elif kind == BOOLEAN:
+        text = "true or false"
+    elif kind == STRING:
+        text = "a string"
+    else:
+        text = {NUMBER: "a number", INTEGER: "an integer", NUMBERS: "a list of numbers"}[kind]
+        bounds = []
+        if meta["gt"] is not None:
+            bounds.append(f"> {_num(meta['gt'])}")
+        if meta["ge"] is not None:
+            bounds.append(f">= {_num(meta['ge'])}")
+        if meta["lt"] is not None:
+            bounds.append(f"< {_num(meta['lt'])}")
+        if meta["le"] is not None:
+            bounds.append(f"<= {_num(meta['le'])}")
+        if bounds:
+            text += (", each " if kind == NUMBERS else " ") + " and ".join(bounds)
+        if meta["even"]:
+            text += " and even"
+        if meta["min_items"]:
+            text += f", at least {meta['min_items']}"
+    note = meta["doc"] + (f", {meta['unit']}" if meta["unit"] else "")
+    return f"{text} ({note})" if note else text
+
+
+def _error(key: str, value: Any, reason: str, allowed: str) -> CaseError:
+    return CaseError(f"{key} = {_fmt(value)}: {reason}; allowed: {allowed}")
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _check_bounds(key: str, value: Any, shown: Any, meta: dict) -> None:
+    if isinstance(value, float) and not math.isfinite(value):
+        raise _error(key, shown, "not a finite number", _allowed(meta))
+    for bound, ok in (("gt", lambda a, b: a > b), ("ge", lambda a, b: a >= b),
+                      ("lt", lambda a, b: a < b), ("le", lambda a, b: a <= b)):
+        if meta[bound] is not None and not ok(value, meta[bound]):
+            raise _error(key, shown, "out of range", _allowed(meta))
+
+
+def _check_value(key: str, value: Any, meta: dict) -> Any:
+    """Validate one value against its field rule; return it normalised (int->float, list->tuple)."""
+    kind = meta["kind"]
+    if value is None:
+        if meta["optional"]:
+            return None
+        raise _error(key, "none", "missing value", _allowed(meta))
+    if kind == NUMBER:
+        if not _is_number(value):
+            raise _error(key, value, f"wrong type ({_type_name(value)})", _allowed(meta))
+        shown, value = value, float(value)
+        _check_bounds(key, value, shown, meta)
+    elif kind == INTEGER:
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise _error(key, value, f"wrong type ({_type_name(value)})", _allowed(meta))
+        value = int(value)
+        _check_bounds(key, value, value, meta)
+        if meta["even"] and value % 2:
+            raise _error(key, value, "odd", _allowed(meta))
+    elif kind == BOOLEAN:
+        if not isinstance(value, bool):
+            raise _error(key, value, f"wrong type ({_type_name(value)})", _allowed(meta))
+    elif kind == STRING:
+        if not isinstance(value, str):
+            raise _error(key, value, f"wrong type ({_type_name(value)})", _allowed(meta))
+        if meta["choices"] and value not in meta["choices"]:
+            raise _error(key, value, "not one of the choices", _allowed(meta))
+    elif kind == NUMBERS:
+        if not isinstance(value, (list, tuple)) or not all(_is_number(v) for v in value):
+            raise _error(key, value, f"wrong type ({_type_name(value)})", _allowed(meta))
+        shown, value = list(value), tuple(float(v) for v in value)
+        if len(value) < meta["min_items"]:
+            raise _error(key, shown, "too few values", _allowed(meta))
+        for v in value:
+            _check_bounds(key, v, shown, meta)
+    else:  # pragma: no cover - programming error
+        raise AssertionError(kind)
+    return value
+
+
+def _type_name(value: Any) -> str:
+    if isinstance(value, bool):
+        return "boolean"
+    if isinstance(value, int):
+        return "integer"
+    if isinstance(value, float):
+        return "float"
+    if isinstance(value, str):
+        return "string"
+    if isinstance(value, (list, tuple)):
+        return "list"
+    if isinstance(value, dict):
+        return "table"
+    return type(value).__name__
+
+
+def _public_fields(cls) -> list[dataclasses.Field]:
+    return [f for f in fields(cls) if f.init and not f.name.startswith("_")]
+
+
+class _Section:
+    """Validation shared by the section dataclasses (runs in ``__post_init__``)."""
+
+    section: ClassVar[str] = ""
+
+    def __post_init__(self):
+        for f in _public_fields(self):
+            value = getattr(self, f.name)
+            if value is None and not f.metadata["optional"]:
+                continue  # automatic default, resolved by the subclass
+            object.__setattr__(self, f.name, _check_value(f"{self.section}.{f.name}", value, f.metadata))
+        self._resolve_and_check()
+
+    def _resolve_and_check(self) -> None:
+        """Resolve automatic defaults and check relations between keys of the section."""
+
+    def _set(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+
+    def _meta(self, name: str) -> dict:
+        return next(f.metadata for f in fields(self) if f.name == name)
+
+    @classmethod
+    def _from_table(cls, table: Any, section: str | None = None):
+        section = section or cls.section
+        if not isinstance(table, dict):
+            raise CaseError(f"{section} = {_fmt(table)}: wrong type ({_type_name(table)}); "
+                            f"allowed: a table [{section}]")
+        names = [f.name for f in _public_fields(cls)]
+        for key, value in table.items():
+            if key not in names:
+                raise _unknown(f"{section}.{key}", value, names, f"[{section}]")
+        for f in _public_fields(cls):
+            required = f.default is MISSING and f.default_factory is MISSING
+            if required and f.name not in table:
+                raise CaseError(f"{section}.{f.name}: missing (a required key); "
+                                f"allowed: {_allowed(f.metadata)}")
+        return cls(**table)
+
+    def _to_flat(self, prefix: str) -> dict[str, Any]:
+        out = {}
+        for f in _public_fields(self):
+            out[f"{prefix}.{f.name}"] = _attr_value(getattr(self, f.name), f.metadata)
+        return out
+
+    def _to_table(self) -> dict[str, Any]:
+        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
+                for f in _public_fields(self) if getattr(self, f.name) is not None}
+
+
+def _unknown(key: str, value: Any, names: list[str], where: str) -> CaseError:
+    leaf = key.rsplit(".", 1)[-1]
+    close = difflib.get_close_matches(leaf, names, n=1)
+    hint = f" (did you mean {close[0]}?)" if close else ""
+    return CaseError(f"{key} = {_fmt(value)}: unknown key{hint}; allowed keys in {where}: "
+                     + ", ".join(names))
+
+
+def _attr_value(value: Any, meta: dict) -> Any:
+    """A field value as a NetCDF attribute: str, int, float or a float array."""
+    if value is None:
+        return meta["none_label"]
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, tuple):
+        return np.asarray(value, dtype=np.float64)
+    return value
+
+
+# ---------------------------------------------------------------------------
+# sections
+# ---------------------------------------------------------------------------
+
+@dataclass(frozen=True, kw_only=True)
+class PipeConfig(_Section):
+    """The straight horizontal circular pipe.
+
+    Attributes
+    ----------
+    diameter : float
+        Inner diameter [m], > 0 and <= 5 (a value in mm would be caught here).
+    length : float
+        Pipe length from the inlet to the outlet [m], > 0. In periodic mode it is the pipe
+        length the pressure drop refers to.
+    mode : str
+        ``"developing"`` (uniform inlet, marching to the outlet) or ``"periodic"``
+        (axially periodic, fully developed flow at the prescribed bulk velocity).
+    sections : tuple of float
+        Axial stations reported and plotted [m], each within [0, length]. Default: the outlet
+        (``(length,)``).
+    reference_data : str or None
+        File with measurements for this case (CSV), relative to the case file's directory or
+        to eulag's ``cases/`` directory. None: no measurements.
+    """
+
+    section: ClassVar[str] = "pipe"
+
+    diameter: float = _param(NUMBER, "inner diameter", unit="m", gt=0.0, le=5.0)
+    length: float = _param(NUMBER, "pipe length", unit="m", gt=0.0, le=1.0e4)
+    mode: str = _param(STRING, "axial treatment", default="developing",
+                       choices=("developing", "periodic"))
+    sections: tuple[float, ...] | None = _param(
+        NUMBERS, "stations reported, within [0, pipe.length]", unit="m", default=None, ge=0.0,
+        min_items=1)
+    reference_data: str | None = _param(
+        STRING, "measurement file beside the case file or in cases/", default=None,
+        optional=True)
+
+    def _resolve_and_check(self):
+        if self.sections is None:
+            self._set("sections", (self.length,))
+        bad = [s for s in self.sections if s > self.length]
+        if bad:
+            raise _error("pipe.sections", list(self.sections), "out of range",
+                         f"numbers within [0, pipe.length = {_num(self.length)}] (m)")
+        if self.reference_data is not None and not self.reference_data.strip():
+            raise _error("pipe.reference_data", self.reference_data, "empty",
+                         _allowed(self._meta("reference_data")))
+
+    @property
+    def radius(self) -> float:
+        """Inner radius [m]."""
+        return 0.5 * self.diameter
+
+
+@dataclass(frozen=True, kw_only=True)
+class GasConfig(_Section):
+    """The carrier gas (incompressible, constant properties) and its inlet state.
+
+    Attributes
+    ----------
+    density : float
+        Gas density [kg m-3], in (0, 100].
+    viscosity : float
+        Dynamic viscosity [Pa s], in (0, 1e-3] (gases are about 1e-5).
+    bulk_velocity : float
+        Bulk (section-mean) axial velocity U0 [m s-1], in (0, 100] (incompressible solver);
+        uniform at the inlet in developing mode.
+    inlet_k : float
+        Turbulent kinetic energy at the inlet [m2 s-2], > 0 and <= bulk_velocity**2.
+        In periodic mode only the initial guess.
+    inlet_epsilon : float or None
+        Dissipation rate at the inlet [m2 s-3], > 0. None: the solver computes it from a
+        length scale of 0.07 D, eps = C_mu**0.75 k**1.5 / (0.07 D).
+    """
+
+    section: ClassVar[str] = "gas"
+
+    density: float = _param(NUMBER, "gas density", unit="kg m-3", gt=0.0, le=100.0)
+    viscosity: float = _param(NUMBER, "dynamic viscosity", unit="Pa s", gt=0.0, le=1.0e-3)
+    bulk_velocity: float = _param(NUMBER, "bulk velocity", unit="m s-1", gt=0.0, le=100.0)
+    inlet_k: float = _param(NUMBER, "inlet turbulent kinetic energy, <= bulk_velocity^2",
+                            unit="m2 s-2", gt=0.0)
+    inlet_epsilon: float | None = _param(
+        NUMBER, "inlet dissipation rate; absent: C_mu^0.75 k^1.5 / (0.07 D)", unit="m2 s-3",
+        default=None, gt=0.0, optional=True, none_label="auto: C_mu^0.75 k^1.5 / (0.07 D)")
+
+    def _resolve_and_check(self):
+        if self.inlet_k > self.bulk_velocity ** 2:
+            raise _error("gas.inlet_k", self.inlet_k, "out of range",
+                         f"a number > 0 and <= gas.bulk_velocity^2 = {_num(self.bulk_velocity ** 2)} "
+                         "(inlet turbulent kinetic energy, m2 s-2)")
+
+    @property
+    def kinematic_viscosity(self) -> float:
+        """nu = mu / rho [m2 s-1]."""
+        return self.viscosity / self.density
+
+
+@dataclass(frozen=True, kw_only=True)
+class ParticleConfig(_Section):
+    """The dispersed phase (monodisperse spheres). Absent from a case: single-phase flow.
+
+    Attributes
+    ----------
+    diameter : float
+        Particle diameter [m], > 0 and < pipe.diameter / 10.
+    density : float
+        Particle material density [kg m-3], > gas.density and <= 25000.
+    mass_loading : float
+        Particle mass flow rate / gas mass flow rate [1], >= 0.
+    injection_rms : float
+        Rms of the Gaussian injection velocity, each component [m s-1], >= 0 (default 0.5).
+        The mean injection velocity is (bulk_velocity, 0, 0).
+    restitution : float
+        Particle-particle normal restitution coefficient [1], in [0, 1] (default 0.9, seed).
+    friction : float
+        Particle-particle (static = dynamic) friction coefficient [1], in [0, 1] (default 0.4,
+        seed).
+    """
+
+    section: ClassVar[str] = "particles"
+
+    diameter: float = _param(NUMBER, "particle diameter, < pipe.diameter / 10", unit="m", gt=0.0)
+    density: float = _param(NUMBER, "particle density, > gas.density", unit="kg m-3", gt=0.0,
+                            le=25000.0)
+    mass_loading: float = _param(NUMBER, "particle / gas mass flow", ge=0.0, le=1000.0)
+    injection_rms: float = _param(NUMBER, "injection velocity rms per component", unit="m s-1",
+                                  default=0.5, ge=0.0)
+    restitution: float = _param(NUMBER, "particle-particle restitution coefficient", default=0.9,
+                                ge=0.0, le=1.0)
+    friction: float = _param(NUMBER, "particle-particle friction coefficient", default=0.4,
+                             ge=0.0, le=1.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class WallConfig(_Section):
+    """Particle-wall collisions on the rough wall (Sommerfeld & Huber 1999; PHYSICS.md §3, §12).
+
+    Attributes
+    ----------
+    roughness_angle_std_deg : float
+        Standard deviation of the wall roughness angle, Delta gamma [degrees], in [0, 45];
+        0 is a smooth wall (default).
+    impact_angle : str
+        Angle used in e_w(alpha), mu_w(alpha): ``"effective"`` (alpha + gamma, relative to
+        the virtual wall; default) or ``"nominal"``.
+    lateral_roughness : bool
+        Also tilt the virtual wall laterally by gamma_2 ~ N(0, Delta gamma) (default true);
+        false: in-plane roughness only.
+    shadow_effect : str
+        ``"weighted"``: the sin(alpha + gamma)-weighted effective pdf (default);
+        ``"rejection"``: only reject alpha + gamma <= 0.
+    """
+
+    section: ClassVar[str] = "walls"
+
+    roughness_angle_std_deg: float = _param(NUMBER, "roughness angle standard deviation",
+                                            unit="degrees", default=0.0, ge=0.0, le=45.0)
+    impact_angle: str = _param(STRING, "angle in e_w, mu_w", default="effective",
+                               choices=("effective", "nominal"))
+    lateral_roughness: bool = _param(BOOLEAN, "lateral roughness angle", default=True)
+    shadow_effect: str = _param(STRING, "shadow-effect sampling", default="weighted",
+                                choices=("weighted", "rejection"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class PhysicsConfig(_Section):
+    """Physics switches of a scene. What a scene switches off is not computed.
+
+    Attributes
+    ----------
+    coupling : str
+        ``"one-way"`` (gas -> particles), ``"two-way"`` (+ particles -> gas) or
+        ``"four-way"`` (+ particle-particle collisions; default).
+    drag : str
+        Drag law: ``"schiller-naumann"``.
+    saffman_mei_lift, magnus_lift, rotation, langevin, gravity : bool
+        Slip-shear lift (Saffman with the Mei correction), slip-rotation (Magnus) lift,
+        particle rotation, Langevin dispersion (fluid velocity seen), gravity. Default true;
+        ``magnus_lift`` defaults to ``rotation`` and needs it.
+    magnus_model : str
+        Rotational lift coefficient: ``"lun-liu"`` (default) or ``"oesterle-bui-dinh"``.
+    langevin_drift_correction : bool
+        Drift correction for inhomogeneous turbulence, (1 - R_P) form (default true).
+    inter_particle_collisions : bool
+        Stochastic inter-particle collisions (Sommerfeld 2001). Default: true for four-way
+        coupling, false otherwise; true needs four-way coupling.
+    """
+
+    section: ClassVar[str] = "physics"
+
+    coupling: str = _param(STRING, "phase coupling", default="four-way",
+                           choices=("one-way", "two-way", "four-way"))
+    drag: str = _param(STRING, "drag law", default="schiller-naumann",
+                       choices=("schiller-naumann",))
+    saffman_mei_lift: bool = _param(BOOLEAN, "slip-shear lift", default=True)
+    magnus_lift: bool | None = _param(BOOLEAN, "slip-rotation lift, needs physics.rotation",
+                                      default=None)
+    magnus_model: str = _param(STRING, "rotational lift coefficient", default="lun-liu",
+                               choices=("lun-liu", "oesterle-bui-dinh"))
+    rotation: bool = _param(BOOLEAN, "particle rotation", default=True)
+    langevin: bool = _param(BOOLEAN, "Langevin dispersion", default=True)
+    langevin_drift_correction: bool = _param(BOOLEAN, "drift correction", default=True)
+    gravity: bool = _param(BOOLEAN, "gravity", default=True)
+    inter_particle_collisions: bool | None = _param(
+        BOOLEAN, "inter-particle collisions, needs four-way coupling", default=None)
+
+    def _resolve_and_check(self):
+        if self.magnus_lift is None:
+            self._set("magnus_lift", self.rotation)
+        elif self.magnus_lift and not self.rotation:
+            raise _error("physics.magnus_lift", True, "needs physics.rotation = true",
+                         "false when physics.rotation = false")
+        if self.inter_particle_collisions is None:
+            self._set("inter_particle_collisions", self.coupling == "four-way")
+        elif self.inter_particle_collisions and self.coupling != "four-way":
+            raise _error("physics.inter_particle_collisions", True,
+                         f'needs physics.coupling = "four-way" (is "{self.coupling}")',
+                         'false unless physics.coupling = "four-way"')
+
+
+@dataclass(frozen=True, kw_only=True)
+class NumericsConfig(_Section):
+    """Mesh, solver and Lagrangian-pass settings.
+
+    Attributes
+    ----------
+    axial_cells : int
+        Axial stations, >= 10 (default 400); ignored in periodic mode.
+    radial_cells : int
+        Radial rings of the cross-section, >= 4 (default 20).
+    azimuthal_cells : int
+        Azimuthal sectors, >= 8 and even, so the mesh is mirror-symmetric about the vertical
+        diameter (default 40).
+    first_cell_yplus : float
+        Target y+ of the wall-cell centroid [1], in (11.225, 500] (log-law region; default 30).
+    parcels : int
+        Parcels per Lagrangian pass in the final passes, >= 1 (default 240000).
+    parcels_start : int
+        Parcels per pass in the earlier passes, in [1, parcels] (default min(30000, parcels)).
+    average_passes : int
+        Passes averaged for the reported particle statistics, in [1, max_passes] (default 3).
+    step_rule : str
+        Particle time step: ``"default"`` (0.5 min(T_L, cell crossing, 0.1/f_coll)) or
+        ``"paper"`` (0.5 min(tau_p, T_L, tau_coll)).
+    relaxation : float
+        Under-relaxation factor of the particle sources [1], in [0.05, 1] (default 0.3).
+    max_passes : int
+        Maximum number of coupling passes, >= 1 (default 40).
+    seed : int
+        Seed of the counter-based random numbers, in [0, 2**63) (default 1).
+    gas_tolerance : float
+        Convergence tolerance of the gas solver (residual) [1], in (0, 0.1] (default 1e-6).
+    gas_max_iterations : int
+        Iteration cap of one gas solve, >= 1 (default 3000).
+    """
+
+    section: ClassVar[str] = "numerics"
+
+    axial_cells: int = _param(INTEGER, "axial stations; ignored in periodic mode", default=400,
+                              ge=10)
+    radial_cells: int = _param(INTEGER, "radial rings", default=20, ge=4)
+    azimuthal_cells: int = _param(INTEGER, "azimuthal sectors, mirror-symmetric mesh",
+                                  default=40, ge=8, even=True)
+    first_cell_yplus: float = _param(NUMBER, "target y+ of the wall cell, log-law region",
+                                     default=30.0, gt=11.225, le=500.0)
+    parcels: int = _param(INTEGER, "parcels per pass in the final passes", default=240000, ge=1)
+    parcels_start: int | None = _param(INTEGER, "parcels per pass earlier, <= numerics.parcels",
+                                       default=None, ge=1)
+    average_passes: int = _param(INTEGER, "passes averaged, <= numerics.max_passes", default=3,
+                                 ge=1)
+    step_rule: str = _param(STRING, "particle time-step rule", default="default",
+                            choices=("default", "paper"))
+    relaxation: float = _param(NUMBER, "source under-relaxation factor", default=0.3, ge=0.05,
+                               le=1.0)
+    max_passes: int = _param(INTEGER, "maximum coupling passes", default=40, ge=1)
+    seed: int = _param(INTEGER, "random seed", default=1, ge=0, lt=2 ** 63)
+    gas_tolerance: float = _param(NUMBER, "gas-solver residual tolerance", default=1e-6, gt=0.0,
+                                  le=0.1)
+    gas_max_iterations: int = _param(INTEGER, "gas-solver iteration cap", default=3000, ge=1)
+
+    def _resolve_and_check(self):
+        if self.parcels_start is None:
+            self._set("parcels_start", min(30000, self.parcels))
+        elif self.parcels_start > self.parcels:
+            raise _error("numerics.parcels_start", self.parcels_start, "out of range",
+                         f"an integer >= 1 and <= numerics.parcels = {self.parcels}")
+        if self.average_passes > self.max_passes:
+            raise _error("numerics.average_passes", self.average_passes, "out of range",
+                         f"an integer >= 1 and <= numerics.max_passes = {self.max_passes}")
+
+
+# ---------------------------------------------------------------------------
+# the case
+# ---------------------------------------------------------------------------
+
+_SECTIONS: dict[str, type[_Section]] = {
+    "pipe": PipeConfig,
+    "gas": GasConfig,
+    "particles": ParticleConfig,
+    "walls": WallConfig,
+    "physics": PhysicsConfig,
+    "numerics": NumericsConfig,
+}
+_TOP_KEYS = ["name", "description", *_SECTIONS]
+_NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
+_NAME_ALLOWED = ("a string of letters, digits, _ . + - starting with a letter or digit, "
+                 "at most 100 characters (used as the output file name)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Case:
+    """A complete, validated case.
+
+    Attributes
+    ----------
+    name : str
+        Case name; the default output file is ``<name>.nc``. From a file: defaults to the
+        file's stem.
+    description : str
+        Free text (default "").
+    pipe, gas, walls, physics, numerics : sections
+        See :class:`PipeConfig`, :class:`GasConfig`, :class:`WallConfig`,
+        :class:`PhysicsConfig`, :class:`NumericsConfig`.
+    particles : ParticleConfig or None
+        None for a single-phase case.
+    source : str or None
+        The case file it was read from (not part of the case's identity or attributes).
+    """
+
+    name: str
+    description: str = ""
+    pipe: PipeConfig
+    gas: GasConfig
+    particles: ParticleConfig | None = None
+    walls: WallConfig = field(default_factory=WallConfig)
+    physics: PhysicsConfig = field(default_factory=PhysicsConfig)
+    numerics: NumericsConfig = field(default_factory=NumericsConfig)
+    source: str | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not _NAME_RE.fullmatch(self.name):
+            raise CaseError(f"name = {_fmt(self.name)}: not a valid case name; allowed: "
+                            + _NAME_ALLOWED)
+        if not isinstance(self.description, str):
+            raise CaseError(f"description = {_fmt(self.description)}: wrong type "
+                            f"({_type_name(self.description)}); allowed: a string")
+        for key, cls in _SECTIONS.items():
+            value = getattr(self, key)
+            if value is None and key == "particles":
+                continue
+            if not isinstance(value, cls):
+                raise CaseError(f"{key}: wrong type ({type(value).__name__}); allowed: {cls.__name__}")
+        p = self.particles
+        if p is not None:
+            if p.diameter >= 0.1 * self.pipe.diameter:
+                raise _error("particles.diameter", p.diameter, "out of range",
+                             f"a number > 0 and < pipe.diameter / 10 = {_num(0.1 * self.pipe.diameter)} "
+                             "(particle diameter, m)")
+            if p.density <= self.gas.density:
+                raise _error("particles.density", p.density, "out of range",
+                             f"a number > gas.density = {_num(self.gas.density)} and <= 25000 "
+                             "(particle density, kg m-3)")
+
+    # -- construction -------------------------------------------------------
+
+    @classmethod
+    def from_dict(cls, d: dict, *, name: str | None = None, source: str | None = None) -> "Case":
+        """Build and validate a case from a nested dict as parsed from TOML.
+
+        ``name`` is used when the dict has no ``name`` key.
+        """
+        if not isinstance(d, dict):
+            raise CaseError(f"case: wrong type ({_type_name(d)}); allowed: a table")
+        for key, value in d.items():
+            if key not in _TOP_KEYS:
+                raise _unknown(key, value, _TOP_KEYS, "the top level")
+        kwargs: dict[str, Any] = {}
+        if "name" in d:
+            kwargs["name"] = d["name"]
+        elif name is not None:
+            kwargs["name"] = name
+        else:
+            raise CaseError("name: missing (a required key); allowed: " + _NAME_ALLOWED)
+        if "description" in d:
+            kwargs["description"] = d["description"]
+        for key in ("pipe", "gas"):
+            if key not in d:
+                raise CaseError(f"{key}: missing (a required table); allowed: a table [{key}]")
+        for key, section_cls in _SECTIONS.items():
+            if key in d:
+                kwargs[key] = section_cls._from_table(d[key])
+        return cls(**kwargs, source=source)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> "Case":
+        """Read and validate a TOML case file; the name defaults to the file's stem.
+
+        ``pipe.reference_data`` must name an existing file, relative to the case file's
+        directory or to eulag's ``cases/`` directory.
+        """
+        path = Path(path)
+        try:
+            text = path.read_bytes().decode("utf-8")
+        except FileNotFoundError:
+            raise CaseError(f"{path}: no such case file") from None
+        except IsADirectoryError:
+            raise CaseError(f"{path}: is a directory, not a case file") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise CaseError(f"{path}: cannot read the case file ({exc})") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise CaseError(f"{path}: not valid TOML ({exc})") from None
+        case = cls.from_dict(data, name=_name_from_stem(path.stem), source=str(path))
+        ref = case.pipe.reference_data
+        if ref is not None and case.reference_data_path() is None:
+            raise _error("pipe.reference_data", ref, "no such file",
+                         f"a file relative to {path.parent or '.'}/ or to {CASES_DIR}/")
+        return case
+
+    @classmethod
+    def from_attrs(cls, attrs: dict) -> "Case":
+        """Rebuild a case from the flattened attributes of :meth:`to_attrs` (e.g. ``ds.attrs``)."""
+        d: dict[str, Any] = {}
+        for key, value in attrs.items():
+            if key in ("case.name", "case.description"):
+                d[key.split(".", 1)[1]] = _plain(value)
+                continue
+            section, _, leaf = key.partition(".")
+            if section not in _SECTIONS or not leaf:
+                continue
+            meta = next((f.metadata for f in _public_fields(_SECTIONS[section]) if f.name == leaf),
+                        None)
+            if meta is None:
+                raise _unknown(key, _plain(value), [f.name for f in _public_fields(_SECTIONS[section])],
+                               f"[{section}]")
+            value = _plain(value)
+            if meta["optional"] and value == meta["none_label"]:
+                continue
+            if meta["kind"] == BOOLEAN and value in ("true", "false"):
+                value = value == "true"
+            elif meta["kind"] == NUMBERS and not isinstance(value, list):
+                value = [value]
+            d.setdefault(section, {})[leaf] = value
+        return cls.from_dict(d)
+
+    # -- export ---------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """Nested plain dict (TOML layout, every default filled in); ``from_dict`` inverts it."""
+        d: dict[str, Any] = {"name": self.name}
+        if self.description:
+            d["description"] = self.description
+        for key in _SECTIONS:
+            section = getattr(self, key)
+            if section is not None:
+                d[key] = section._to_table()
+        return d
+
+    def to_attrs(self) -> dict[str, Any]:
+        """The case flattened to ``"section.key" -> value`` for NetCDF global attributes.
+
+        Every key, defaults included. Values are str, int, float or float arrays only:
+        booleans become "true"/"false", None becomes the field's label (e.g. "none"), lists
+        become float64 arrays. A single-phase case has no ``particles.*`` keys.
+        """
+        out: dict[str, Any] = {"case.name": self.name, "case.description": self.description}
+        for key in _SECTIONS:
+            section = getattr(self, key)
+            if section is not None:
+                out.update(section._to_flat(key))
+        return out
+
+    def replace(self, **changes: Any) -> "Case":
+        """A new, re-validated case with some values changed.
+
+        Top-level keys take values (``name="x"``); sections take dicts that are merged into
+        the section (``numerics={"parcels": 20000}``; ``particles=None`` removes the particle
+        phase). Keys that hold their automatic default (``numerics.parcels_start``,
+        ``physics.magnus_lift``, ``physics.inter_particle_collisions``) follow the new values.
+        """
+        d = self.to_dict()
+        n, ph = self.numerics, self.physics
+        if n.parcels_start == min(30000, n.parcels):
+            del d["numerics"]["parcels_start"]
+        if ph.magnus_lift == ph.rotation:
+            del d["physics"]["magnus_lift"]
+        if ph.inter_particle_collisions == (ph.coupling == "four-way"):
+            del d["physics"]["inter_particle_collisions"]
+        for key, value in changes.items():
+            if key in _SECTIONS:
+                if value is None and key == "particles":
+                    d.pop("particles", None)
+                    continue
+                if not isinstance(value, dict):
+                    raise CaseError(f"{key} = {_fmt(value)}: wrong type ({_type_name(value)}); "
+                                    f"allowed: a table of changes to [{key}]")
+                d[key] = {**d.get(key, {}), **value}
+            elif key in _TOP_KEYS:
+                d[key] = value
+            else:
+                raise _unknown(key, value, _TOP_KEYS, "the top level")
+        return Case.from_dict(d, source=self.source)
+
+    # -- conveniences ----------------------------------------------------------
+
+    @property
+    def single_phase(self) -> bool:
+        """True when the case has no ``[particles]``."""
+        return self.particles is None
+
+    @property
+    def reynolds_number(self) -> float:
+        """Bulk Reynolds number U0 D rho / mu [1]."""
+        return self.gas.bulk_velocity * self.pipe.diameter * self.gas.density / self.gas.viscosity
+
+    def reference_data_path(self) -> Path | None:
+        """The existing file ``pipe.reference_data`` names, or None (unset or not found)."""
+        ref = self.pipe.reference_data
+        if ref is None:
+            return None
+        candidates = [Path(ref)]
+        if self.source is not None and not Path(ref).is_absolute():
+            candidates.insert(0, Path(self.source).parent / ref)
+        candidates.append(CASES_DIR / ref)
+        return next((c for c in candidates if c.is_file()), None)
+
+
+def _name_from_stem(stem: str) -> str:
+    """A valid case name from a file stem (invalid characters become '_')."""
+    name = re.sub(r"[^A-Za-z0-9_.+-]", "_", stem)[:100]
+    return name if name and name[0].isalnum() else ("case_" + name)[:100]
+
+
+def _plain(value: Any) -> Any:
+    """numpy scalars/arrays (as read back from NetCDF) -> Python scalars/lists."""
+    if isinstance(value, np.ndarray):
+        return [v.item() for v in value.ravel()] if value.ndim else value.item()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
