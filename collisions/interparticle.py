@@ -1,0 +1,378 @@
+"""Inter-particle collisions: binary hard-sphere kernel and the stochastic model of Sommerfeld (2001).
+
+PHYSICS.md §4 and §12 (items 6, 7, 9).  Per real particle and time step the
+stochastic model
+
+1. builds a fictitious partner from the cell statistics of the previous pass:
+   diameter D₂ (the caller draws it from the local size distribution, see
+   ``sample_size_class``), velocity
+       u₂ = ū₂ + R(St) u′₁ + σ₂ sqrt(1 − R²) ξ,   u′₁ = u₁ − ū₁,   ξ ~ N(0, 1) per component,
+       R(St) = exp(−0.55 St^0.4),  St = τ_p/T_L                   (Sommerfeld 2001, eq. 19–20)
+   and angular velocity ω₂ = ω̄ (+ σ_ω ξ′ if the cell rms is given)   [§12.7]
+2. collides with probability P = 1 − exp(−f Δt),
+       f = (π/4) (D₁ + D₂)² |u₁ − u₂| n_p                           [§12.9; Sommerfeld 2001, eq. 14]
+   (P is never clipped: the exponential form is the Poisson probability of at
+   least one collision in Δt)
+3. samples the impact point uniformly on the full collision disc (L = sqrt(U₁),
+   ψ = 2π U₂, sin Φ = L) and applies the two-sphere impulse equations with
+   restitution e = 0.9 and friction μ = 0.4 (static = dynamic; seed) to the real
+   particle only; the partner is discarded                         [§4.1 step 5–6, §4.2]
+
+Masses enter only through m₂/(m₁ + m₂) = D₂³/(D₁³ + D₂³) (one material), so no
+density is needed.
+"""
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+from numba import njit
+
+from .random import next_normal_pair, next_uniform, next_uniform_pair
+
+# Binary / stochastic collision status codes.
+COLLISION_NONE = 0  # no collision (or spheres not approaching)
+COLLISION_STICKING = 1  # non-sliding collision: tangential contact velocity brought to zero
+COLLISION_SLIDING = 2  # sliding collision: Coulomb friction over the whole impact
+
+# Layout of the ``partner`` diagnostic array written by the stochastic kernel.
+PARTNER_VELOCITY = 0  # [0:3] partner velocity before the collision [m/s]
+PARTNER_OMEGA = 3  # [3:6] partner angular velocity [rad/s]
+PARTNER_NORMAL = 6  # [6:9] unit line of centres, real → partner (written on collision only)
+PARTNER_SIZE = 9
+
+_TWO_PI = 2.0 * math.pi
+_QUARTER_PI = 0.25 * math.pi
+
+
+@njit(cache=True)
+def sommerfeld_2001_correlation(stokes):
+    """Velocity correlation of colliding particles R(St) = exp(−0.55 St^0.4) [-].
+
+    stokes: St = τ_p/T_L [-] (τ_p particle response time, T_L fluid Lagrangian
+    integral time). Sommerfeld (2001), IJMF 27, eq. (19); PHYSICS.md §4.1 step 3.
+    R → 1 for St → 0 (tracers move with their neighbours), R → 0 for St → ∞.
+    """
+    return math.exp(-0.55 * stokes**0.4)
+
+
+@njit(cache=True)
+def kinetic_collision_frequency(d1, d2, number_density, relative_speed):
+    """Collision frequency of one particle with a partner class, f = (π/4)(D₁ + D₂)² |g| n [1/s].
+
+    d1, d2 [m]; number_density n [1/m3]; relative_speed |g| [m/s]. Kinetic theory of
+    hard spheres; Sommerfeld (2001), eq. (14); PHYSICS.md §4.1 step 4.
+    """
+    s = d1 + d2
+    return _QUARTER_PI * s * s * relative_speed * number_density
+
+
+@njit(cache=True)
+def collision_probability(frequency, dt):
+    """P = 1 − exp(−f Δt) [-]: Poisson probability of at least one collision in Δt.
+
+    frequency [1/s], dt [s]. PHYSICS.md §12.9. Computed as −expm1(−f Δt) (accurate for
+    small f Δt); never clipped.
+    """
+    return -math.expm1(-frequency * dt)
+
+
+@njit(cache=True)
+def mean_collision_frequency(d1, d2, number_density, sigma1, sigma2, correlation):
+    """Mean collision frequency for Maxwellian fluctuations, ⟨f⟩ = (π/4)(D₁+D₂)² n ⟨|g|⟩ [1/s].
+
+    Equal means; per-component rms sigma1, sigma2 [m/s] of the two classes; partner
+    correlated with coefficient R as in the stochastic model (the partner's correlated
+    part R u′₁ plus independent part σ₂ sqrt(1 − R²) ξ). Then g = u′₁ − u′₂ is Gaussian
+    with per-component variance s² = (1 − R)² σ₁² + (1 − R²) σ₂² and
+    ⟨|g|⟩ = s sqrt(8/π) (Maxwell distribution mean). For R = 0, σ₁ = σ₂ = σ:
+    ⟨|g|⟩ = 4σ/√π (PHYSICS.md §7). Useful for the step-size limit 0.1/f_coll.
+    """
+    s2 = (1.0 - correlation) ** 2 * sigma1 * sigma1 + (1.0 - correlation * correlation) * sigma2 * sigma2
+    return kinetic_collision_frequency(d1, d2, number_density, math.sqrt(s2 * 8.0 / math.pi))
+
+
+@njit(cache=True)
+def sample_size_class(cumulative_weights, rng):
+    """Index k of a size class drawn with probability ∝ its weight.
+
+    cumulative_weights: float64[K], non-decreasing, last entry the total (> 0) — e.g. the
+    running sum of the cell's number density per class. rng advanced by one draw.
+    """
+    k_max = cumulative_weights.shape[0] - 1
+    u = next_uniform(rng) * cumulative_weights[k_max]
+    lo = 0
+    hi = k_max
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if cumulative_weights[mid] > u:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@njit(cache=True)
+def impact_normal(gx, gy, gz, u1, u2):
+    """Unit line of centres n (real → partner) for an impact point uniform on the collision disc.
+
+    g = u₁ − u₂ [m/s] (|g| > 0); u1, u2 uniforms in [0, 1). In the partner's rest frame,
+    with ĝ = g/|g| and any orthonormal e₁, e₂ ⊥ ĝ: L = sqrt(u1) (pdf 2L on [0, 1]),
+    ψ = 2π u2, sin Φ = L, n = cos Φ ĝ + sin Φ (cos ψ e₁ + sin ψ e₂); hence g·n = |g| cos Φ ≥ 0.
+    Sommerfeld (2001), Sec. 3 (L, Y, Z, Φ, Ψ construction); PHYSICS.md §4.1 step 5 (full disc).
+    """
+    g = math.sqrt(gx * gx + gy * gy + gz * gz)
+    hx = gx / g
+    hy = gy / g
+    hz = gz / g
+    # e1 = normalised (ĝ × a), a the coordinate axis least aligned with ĝ
+    ax = abs(hx)
+    ay = abs(hy)
+    az = abs(hz)
+    if ax <= ay and ax <= az:  # a = e_x
+        e1x, e1y, e1z = 0.0, hz, -hy
+    elif ay <= az:  # a = e_y
+        e1x, e1y, e1z = -hz, 0.0, hx
+    else:  # a = e_z
+        e1x, e1y, e1z = hy, -hx, 0.0
+    inv = 1.0 / math.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
+    e1x *= inv
+    e1y *= inv
+    e1z *= inv
+    e2x = hy * e1z - hz * e1y
+    e2y = hz * e1x - hx * e1z
+    e2z = hx * e1y - hy * e1x
+    sin_phi = math.sqrt(u1)
+    cos_phi = math.sqrt(1.0 - u1)
+    psi = _TWO_PI * u2
+    c = sin_phi * math.cos(psi)
+    s = sin_phi * math.sin(psi)
+    return (cos_phi * hx + c * e1x + s * e2x,
+            cos_phi * hy + c * e1y + s * e2y,
+            cos_phi * hz + c * e1z + s * e2z)
+
+
+@njit(cache=True)
+def hard_sphere_pair_impulse(gx, gy, gz, sx, sy, sz, nx, ny, nz, e, mu):
+    """Impulse per reduced mass J/m* on sphere 1 in a collision of two hard spheres.
+
+    PHYSICS.md §4.2 (Crowe et al. 2012, Sec. 5.4; Sommerfeld 2001, eqs. 21–26 in vector
+    form). g = u₁ − u₂ [m/s]; s = r₁ ω₁ + r₂ ω₂ [m/s]; n unit line of centres from 1 to 2
+    with g_n = g·n > 0; e, mu [-].  G = g + s × n, G_t = G − (G·n) n:
+
+        J/m* = −(1+e) g_n n + J_t/m*
+        non-sliding if |G_t| ≤ (7/2) μ (1+e) g_n:  J_t/m* = −(2/7) G_t
+        sliding otherwise:                         J_t/m* = −μ (1+e) g_n G_t/|G_t|
+
+    Returns (Jx, Jy, Jz, Jtx, Jty, Jtz, status) per unit m* [m/s]; status
+    COLLISION_NONE (g_n ≤ 0, zero impulse), COLLISION_STICKING or COLLISION_SLIDING.
+    """
+    gn = gx * nx + gy * ny + gz * nz
+    if not gn > 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, COLLISION_NONE
+    cx = gx + (sy * nz - sz * ny)
+    cy = gy + (sz * nx - sx * nz)
+    cz = gz + (sx * ny - sy * nx)
+    cn = cx * nx + cy * ny + cz * nz
+    cx -= cn * nx
+    cy -= cn * ny
+    cz -= cn * nz
+    ct = math.sqrt(cx * cx + cy * cy + cz * cz)
+    jn = (1.0 + e) * gn
+    if ct <= 3.5 * mu * jn:
+        f = 2.0 / 7.0
+        status = COLLISION_STICKING
+    else:
+        f = mu * jn / ct
+        status = COLLISION_SLIDING
+    jtx = -f * cx
+    jty = -f * cy
+    jtz = -f * cz
+    return -jn * nx + jtx, -jn * ny + jty, -jn * nz + jtz, jtx, jty, jtz, status
+
+
+@njit(cache=True)
+def hard_sphere_pair(u1, w1, d1, u2, w2, d2, n, e, mu):
+    """Binary hard-sphere collision of two real spheres of one material (in place).
+
+    u1, u2 [m/s], w1, w2 [rad/s]: float64[3], updated; d1, d2 diameters [m]; n float64[3]
+    unit line of centres from sphere 1 to sphere 2; e, mu [-]. With m ∝ D³ and
+    m* = m₁m₂/(m₁+m₂), J from ``hard_sphere_pair_impulse``:
+
+        u₁′ = u₁ + J/m₁,  u₂′ = u₂ − J/m₂,
+        ω₁′ = ω₁ + 5/(2 m₁ r₁) n × J_t,  ω₂′ = ω₂ + 5/(2 m₂ r₂) n × J_t     (PHYSICS.md §4.2)
+
+    Conserves linear and angular momentum; kinetic energy does not increase for e ≤ 1.
+    Returns the status of ``hard_sphere_pair_impulse`` (no change if not approaching).
+    """
+    r1 = 0.5 * d1
+    r2 = 0.5 * d2
+    m1 = d1 * d1 * d1
+    m2 = d2 * d2 * d2
+    f1 = m2 / (m1 + m2)  # m*/m1
+    f2 = m1 / (m1 + m2)  # m*/m2
+    jx, jy, jz, tx, ty, tz, status = hard_sphere_pair_impulse(
+        u1[0] - u2[0], u1[1] - u2[1], u1[2] - u2[2],
+        r1 * w1[0] + r2 * w2[0], r1 * w1[1] + r2 * w2[1], r1 * w1[2] + r2 * w2[2],
+        n[0], n[1], n[2], e, mu)
+    if status == COLLISION_NONE:
+        return status
+    u1[0] += f1 * jx
+    u1[1] += f1 * jy
+    u1[2] += f1 * jz
+    u2[0] -= f2 * jx
+    u2[1] -= f2 * jy
+    u2[2] -= f2 * jz
+    cx = n[1] * tz - n[2] * ty
+    cy = n[2] * tx - n[0] * tz
+    cz = n[0] * ty - n[1] * tx
+    c1 = 2.5 * f1 / r1
+    c2 = 2.5 * f2 / r2
+    w1[0] += c1 * cx
+    w1[1] += c1 * cy
+    w1[2] += c1 * cz
+    w2[0] += c2 * cx
+    w2[1] += c2 * cy
+    w2[2] += c2 * cz
+    return status
+
+
+@dataclass(frozen=True)
+class InterparticleOptions:
+    """Compile-time constants of the stochastic collision kernel.
+
+    restitution : e [-] (seed: 0.9);  friction : μ [-], static = dynamic (seed: 0.4).
+    rotation : include spin in the contact velocity and update ω (PHYSICS.md §4.2, §12.7);
+        if False, both spins are taken as zero and ω is not touched.
+    """
+
+    restitution: float = 0.9
+    friction: float = 0.4
+    rotation: bool = True
+
+    def __post_init__(self):
+        if not 0.0 <= float(self.restitution) <= 1.0:
+            raise ValueError("restitution must lie in [0, 1]")
+        if not float(self.friction) >= 0.0:
+            raise ValueError("friction must be >= 0")
+        object.__setattr__(self, "restitution", float(self.restitution))
+        object.__setattr__(self, "friction", float(self.friction))
+
+
+@lru_cache(maxsize=None)
+def make_interparticle_collision(options=InterparticleOptions()):
+    """Build the stochastic inter-particle collision kernel (memoised per option set).
+
+    Called once per real particle and time step from the particle step kernel:
+
+        status, f = interparticle_collision(vel, omega, d_p, mean_own, d_partner, mean_partner,
+                                            rms_partner, omega_mean, omega_rms, number_density,
+                                            stokes, dt, rng, dv, partner)
+
+    vel       float64[3] real-particle velocity [m/s]            (in/out)
+    omega     float64[3] real-particle angular velocity [rad/s]  (in/out)
+    d_p       real-particle diameter [m]
+    mean_own  float64[3] cell mean velocity of the real particle's size class [m/s]
+    d_partner partner diameter [m] (drawn by the caller; monodisperse: d_p)
+    mean_partner, rms_partner  float64[3] cell mean and rms velocity (per component) of the
+              partner's size class [m/s] (monodisperse: same class as mean_own)
+    omega_mean, omega_rms  float64[3] cell mean and rms angular velocity [rad/s] (zeros if
+              not stored)
+    number_density  n_p of real particles in the cell [1/m3] (of the partner class if the
+              caller draws from a per-class pdf, else the total)
+    stokes    St = τ_p/T_L of the real particle [-] (R = exp(−0.55 St^0.4))
+    dt        time step [s]
+    rng       int64[5] state of ``collisions.random`` (stream STREAM_COLLISION; advanced)
+    dv        float64[3] collision velocity jump accumulator [m/s] (+= v_after − v_before)
+    partner   float64[9] diagnostics, written: [0:3] partner velocity, [3:6] partner spin,
+              [6:9] unit line of centres (on collision only)
+
+    Returns (status, f): COLLISION_NONE / COLLISION_STICKING / COLLISION_SLIDING, and the
+    collision frequency f [1/s] with this partner (the probability used was 1 − exp(−f Δt)).
+    Draws: 2 (partner velocity) + 1 (decision), + 1 (impact point) + 2 (partner spin,
+    only if omega_rms is non-zero and rotation is on) on a collision.
+    """
+    e = options.restitution
+    mu = options.friction
+    rotation = options.rotation
+
+    @njit(cache=True)
+    def interparticle_collision(vel, omega, d_p, mean_own, d_partner, mean_partner, rms_partner,
+                                omega_mean, omega_rms, number_density, stokes, dt, rng, dv, partner):
+        if not (number_density > 0.0 and dt > 0.0):
+            return COLLISION_NONE, 0.0
+        # fictitious partner velocity, correlated with the real particle's fluctuation
+        corr = sommerfeld_2001_correlation(stokes)
+        ind = math.sqrt(max(0.0, 1.0 - corr * corr))
+        xi0, xi1 = next_normal_pair(rng)
+        xi2, _ = next_normal_pair(rng)
+        u2x = mean_partner[0] + corr * (vel[0] - mean_own[0]) + rms_partner[0] * ind * xi0
+        u2y = mean_partner[1] + corr * (vel[1] - mean_own[1]) + rms_partner[1] * ind * xi1
+        u2z = mean_partner[2] + corr * (vel[2] - mean_own[2]) + rms_partner[2] * ind * xi2
+        partner[0] = u2x
+        partner[1] = u2y
+        partner[2] = u2z
+        gx = vel[0] - u2x
+        gy = vel[1] - u2y
+        gz = vel[2] - u2z
+        g = math.sqrt(gx * gx + gy * gy + gz * gz)
+        f = kinetic_collision_frequency(d_p, d_partner, number_density, g)
+        if not next_uniform(rng) < collision_probability(f, dt):
+            partner[3] = omega_mean[0]
+            partner[4] = omega_mean[1]
+            partner[5] = omega_mean[2]
+            return COLLISION_NONE, f
+        # impact point on the full collision disc → line of centres
+        p1, p2 = next_uniform_pair(rng)
+        nx, ny, nz = impact_normal(gx, gy, gz, p1, p2)
+        partner[6] = nx
+        partner[7] = ny
+        partner[8] = nz
+        r1 = 0.5 * d_p
+        r2 = 0.5 * d_partner
+        if rotation:
+            w2x = omega_mean[0]
+            w2y = omega_mean[1]
+            w2z = omega_mean[2]
+            if omega_rms[0] != 0.0 or omega_rms[1] != 0.0 or omega_rms[2] != 0.0:
+                a0, a1 = next_normal_pair(rng)
+                a2, _ = next_normal_pair(rng)
+                w2x += omega_rms[0] * a0
+                w2y += omega_rms[1] * a1
+                w2z += omega_rms[2] * a2
+            sx = r1 * omega[0] + r2 * w2x
+            sy = r1 * omega[1] + r2 * w2y
+            sz = r1 * omega[2] + r2 * w2z
+        else:
+            w2x = 0.0
+            w2y = 0.0
+            w2z = 0.0
+            sx = 0.0
+            sy = 0.0
+            sz = 0.0
+        partner[3] = w2x
+        partner[4] = w2y
+        partner[5] = w2z
+        jx, jy, jz, tx, ty, tz, status = hard_sphere_pair_impulse(gx, gy, gz, sx, sy, sz,
+                                                                  nx, ny, nz, e, mu)
+        m1 = d_p * d_p * d_p
+        m2 = d_partner * d_partner * d_partner
+        f1 = m2 / (m1 + m2)  # m*/m1
+        vel[0] += f1 * jx
+        vel[1] += f1 * jy
+        vel[2] += f1 * jz
+        dv[0] += f1 * jx
+        dv[1] += f1 * jy
+        dv[2] += f1 * jz
+        if rotation:
+            c1 = 2.5 * f1 / r1
+            omega[0] += c1 * (ny * tz - nz * ty)
+            omega[1] += c1 * (nz * tx - nx * tz)
+            omega[2] += c1 * (nx * ty - ny * tx)
+        return status, f
+
+    return interparticle_collision
+
+
+interparticle_collision = make_interparticle_collision(InterparticleOptions())
+"""Default kernel (e = 0.9, μ = 0.4, with spin); see ``make_interparticle_collision``."""
