@@ -1,0 +1,7 @@
+"""``python -m eulag``: the eulag command line."""
+
+import sys
+
+from eulag.cli import main
+
+sys.exit(main())
