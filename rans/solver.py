@@ -1,0 +1,575 @@
+"""Steady k-epsilon RANS for incompressible air in a straight circular pipe.
+
+Method (DESIGN.md, "Numerical choices")
+---------------------------------------
+Space marching in the manner of Patankar & Spalding (1972): the pipe flow has no axial
+recirculation, so each axial station is a 2-D cross-section problem.  The axial
+derivative is a backward difference (second-order BDF2, variable first step), axial
+diffusion and the axial gradient of the cross-section pressure are dropped.  Per station:
+
+* axial momentum with the section-mean pressure gradient -dp/dx found so that the mass
+  flow is exactly the prescribed one (the axial velocity is linear in dp/dx, so two
+  right-hand sides of one LU factorisation give it);
+* cross-section momentum (Cartesian components u_y, u_z) and a cross-section pressure p'
+  by SIMPLEC with momentum interpolation; cross-section continuity contains -d(u_x)/dx;
+  the pressure gradient and the body force (particle momentum source) meet at the faces
+  ("balanced force", see rans.operators);
+* k and epsilon with upwind convection, linearised implicit sinks and standard wall
+  functions (rans.kepsilon), so both stay positive; any non-finite or non-positive value
+  stops the solve with :class:`SolverDivergence` naming the variable and the cell.
+
+The outer iterations at a station are repeated until the changes fall below ``tol``.
+The fully developed ("periodic") mode is the same operator with d/dx = 0, reached by
+pseudo-marching: the previous iterate plays the upstream station, so at convergence the
+axial derivative vanishes and the bulk velocity is still imposed exactly.
+
+All cross-section equations are per unit axial length.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.sparse.linalg import splu
+
+from . import kepsilon as ke
+from .mesh import PipeMesh
+
+__all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
+
+
+class SolverDivergence(RuntimeError):
+    """The gas solve failed; the message names the variable and the cell."""
+
+
+@dataclass(frozen=True)
+class GasProperties:
+    """Constant gas properties: density [kg m-3], dynamic viscosity [Pa s]."""
+
+    density: float = 1.205
+    viscosity: float = 1.81e-5
+
+    @property
+    def kinematic_viscosity(self):
+        return self.viscosity / self.density
+
+
+@dataclass
+class Sources:
+    """Per-cell sources on the gas, filled by the particle phase (zero for single-phase flow).
+
+    momentum (3, nx, nr, nt) [N m-3]: x, y, z components of the momentum added to the gas;
+    k (nx, nr, nt) [W m-3]; epsilon (nx, nr, nt) [W m-3 s-1].
+
+    k_reference, epsilon_reference (optional, (nx, nr, nt)): the gas k [m2 s-2] and epsilon
+    [m2 s-3] the sources were sampled in.  Particle sinks of turbulence scale with the
+    turbulence itself (S_k = -<u'.J> ~ k), so negative parts are applied as the linear sinks
+    S_k k/k_reference and S_eps eps/epsilon_reference, which can never drive k or epsilon
+    through zero.  Without references they are linearised about the current iterate
+    (Patankar), and a sink larger than the flow can sustain stops the solve with a diagnosis.
+    """
+
+    momentum: np.ndarray
+    k: np.ndarray
+    epsilon: np.ndarray
+    k_reference: np.ndarray = None
+    epsilon_reference: np.ndarray = None
+
+    @classmethod
+    def zeros(cls, mesh):
+        s = mesh.shape
+        return cls(np.zeros((3,) + s), np.zeros(s), np.zeros(s))
+
+
+@dataclass
+class GasField:
+    """Converged gas field on a :class:`PipeMesh`; arrays are (nx, nr, nt) unless noted.
+
+    ux, uy, uz [m s-1]; p [Pa] (relative to the outlet, or zero section mean when periodic);
+    k [m2 s-2]; epsilon [m2 s-3]; nut [m2 s-1]; pressure_gradient (nx,) section-mean -dp/dx
+    [Pa m-1]; wall_shear (nx, nt) [Pa]; wall_yplus (nx, nt) y+ of the wall-cell centres;
+    residuals: solver residual history (max normalised change per outer iteration);
+    station_iterations (nx,) outer iterations used per station.
+    """
+
+    mesh: PipeMesh
+    gas: GasProperties
+    bulk_velocity: float
+    ux: np.ndarray
+    uy: np.ndarray
+    uz: np.ndarray
+    p: np.ndarray
+    k: np.ndarray
+    epsilon: np.ndarray
+    pressure_gradient: np.ndarray
+    wall_shear: np.ndarray
+    residuals: np.ndarray
+    station_iterations: np.ndarray
+    converged: bool
+    wall_time: float = 0.0
+    face_flux: np.ndarray = field(default=None, repr=False)
+
+    @property
+    def nut(self):
+        return ke.C_MU * self.k**2 / self.epsilon
+
+    @property
+    def iterations(self):
+        return int(self.residuals.size)
+
+    @property
+    def friction_factor(self):
+        """Darcy friction factor from the pressure gradient, f_D = 2 D (-dp/dx) / (rho U_b^2)."""
+        return 2.0 * self.mesh.diameter * self.pressure_gradient / (self.gas.density * self.bulk_velocity**2)
+
+    @property
+    def wall_yplus(self):
+        u_tau = np.sqrt(self.wall_shear / self.gas.density)
+        return self.mesh.wall_distance * u_tau / self.gas.kinematic_viscosity
+
+
+# ---------------------------------------------------------------------- station state
+@dataclass
+class _State:
+    ux: np.ndarray
+    uy: np.ndarray
+    uz: np.ndarray
+    p: np.ndarray
+    k: np.ndarray
+    eps: np.ndarray
+    flux: np.ndarray
+    G: float = 0.0  # section-mean -dp/dx [Pa/m]
+    tau_w: np.ndarray = None
+
+    def copy(self):
+        return _State(*(np.copy(getattr(self, n)) for n in ("ux", "uy", "uz", "p", "k", "eps", "flux")), self.G,
+                      None if self.tau_w is None else self.tau_w.copy())
+
+
+_VARS = ("ux", "uy", "uz", "k", "eps")
+
+
+class _StationSolver:
+    """Outer iteration of the cross-section equations at one axial station."""
+
+    def __init__(self, mesh, gas, bulk_velocity, momentum_scheme="hybrid", pressure_relaxation=1.0):
+        self.mesh = mesh
+        self.sec = mesh.geometry()
+        self.rho = gas.density
+        self.mu = gas.viscosity
+        self.Ub = bulk_velocity
+        self.area_total = self.sec.area.sum()
+        self.scheme = momentum_scheme
+        self.alpha_p = pressure_relaxation
+        self.station = 0
+        self.x = 0.0
+        self.periodic = mesh.mode == "periodic"
+
+    # -------------------------------------------------------------------- checks
+    def check(self, name, values, positive=False):
+        bad = ~np.isfinite(values)
+        if positive:
+            bad |= values <= 0.0
+        if bad.any():
+            c = int(np.flatnonzero(bad)[0])
+            sec = self.sec
+            j, k = divmod(c, sec.nt)
+            th = math.degrees(math.atan2(sec.cy[c], sec.cz[c])) % 360.0
+            raise SolverDivergence(
+                f"gas solve diverged: {name} = {values[c]:.4g} at x = {self.x:.4g} m, "
+                f"r = {math.hypot(sec.cy[c], sec.cz[c]):.4g} m, theta = {th:.1f} deg "
+                f"(station {self.station}, ring {j}, sector {k})"
+            )
+
+    # -------------------------------------------------------------------- one outer iteration
+    def iterate(self, st, hist, c0, dx, src, laminar=False, relax_turb=1.0):
+        """Update ``st`` in place.  hist: dict of upstream combinations (axial derivative
+        (c0 phi - hist)/dx); src: dict with 'mx', 'fz', 'fy' [N m-3], 'k', 'eps' cell arrays."""
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return self._iterate(st, hist, c0, dx, src, laminar, relax_turb)
+
+    def _iterate(self, st, hist, c0, dx, src, laminar, relax_turb):
+        sec, rho, mu = self.sec, self.rho, self.mu
+        A = sec.area
+        wall = sec.wall
+        yP = sec.wall_distance
+
+        if laminar:
+            mut = np.zeros_like(st.k)
+        else:
+            mut = rho * ke.C_MU * st.k**2 / st.eps
+        # wall function: tau_w = cw * U_t (tangential speed), force per unit length = cw * arc * U
+        if laminar:
+            cw = np.full(wall.size, mu / yP)
+        else:
+            cw, _ = ke.wall_shear_coefficient(st.k[wall], yP, rho, mu)
+        cwL = cw * sec.wall_arc
+
+        ux_conv = st.ux
+        if np.any(ux_conv <= 0.0):
+            self.check("u_x (the marching solver needs positive axial velocity)", np.where(ux_conv > 0, 1.0, -1.0),
+                       positive=True)
+        ax = rho * A * ux_conv / dx  # axial convection coefficient (times c0 below)
+
+        # ---------------- momentum matrix (shared by u_x, u_y, u_z)
+        mu_f = sec.interp(mu + mut)
+        diag, aPN, aNP = sec.transport(st.flux, mu_f, self.scheme)
+        diag_m = diag + c0 * ax
+        diag_m[wall] += cwL
+        lu = splu(sec.matrix(diag_m, aPN, aNP))
+
+        # axial velocity, mass flow fixed through the mean pressure gradient G = -dp/dx
+        b = ax * hist["ux"] + src["mx"] * A
+        u1 = lu.solve(b)
+        u2 = lu.solve(A.copy())
+        mdot_target = self.Ub * self.area_total
+        G = (mdot_target - A @ u1) / (A @ u2)
+        ux_new = u1 + G * u2
+        self.check("u_x", ux_new)
+
+        # ---------------- cross-section momentum (balanced force at the faces)
+        fz_f = sec.interp(src["fz"])
+        fy_f = sec.interp(src["fy"])
+        g = -sec.normal_difference(st.p) + fz_f * sec.nz + fy_f * sec.ny
+        Rz, Ry = sec.reconstruct(g, np.zeros(wall.size))
+        # wall: shear acts on the tangential velocity only; implicit -cw u, explicit +cw (u.e_r) e_r
+        un = st.uz[wall] * sec.wall_nz + st.uy[wall] * sec.wall_ny
+        bz = ax * hist["uz"] + A * Rz
+        by = ax * hist["uy"] + A * Ry
+        bz[wall] += cwL * un * sec.wall_nz
+        by[wall] += cwL * un * sec.wall_ny
+        uz = lu.solve(bz)
+        uy = lu.solve(by)
+
+        # ---------------- SIMPLEC pressure correction with momentum interpolation
+        offsum = sec._sum_P @ np.abs(aPN) + sec._sum_N @ np.abs(aNP)
+        red = diag_m - offsum
+        red = np.where(red > 1e-3 * diag_m, red, diag_m)
+        dP = A / red
+        d_f = sec.interp(dP)
+        Uf = (sec.interp(uz - dP * Rz) * sec.nz + sec.interp(uy - dP * Ry) * sec.ny) + d_f * g
+        flux = rho * Uf * sec.S
+        # continuity: cross-section outflow + axial outflow d(u_x)/dx; the periodic mode is
+        # fully developed (d/dx = 0), so its pseudo-march does not feed continuity
+        axial_out = 0.0 if self.periodic else rho * A * (c0 * ux_new - hist["ux"]) / dx
+        imbalance = sec.div @ flux + axial_out
+        coef = rho * d_f * sec.S / sec.delta
+        diag_p = sec.fsum @ coef
+        diag_p[sec.wall[0]] += diag_p.max() * 1e3  # pin the level of p' (pure Neumann problem)
+        pc = splu(sec.matrix(diag_p, -coef, -coef)).solve(-imbalance)
+        flux = flux + coef * (pc[sec.P] - pc[sec.N])
+        cz, cy = sec.reconstruct(-sec.normal_difference(pc), np.zeros(wall.size))
+        uz = uz + dP * cz
+        uy = uy + dP * cy
+        p = st.p + self.alpha_p * pc
+        p -= (A @ p) / self.area_total
+        self.check("u_y", uy)
+        self.check("u_z", uz)
+
+        # ---------------- k and epsilon
+        if laminar:
+            k_new, eps_new = st.k, st.eps
+            tau_w = cw * np.abs(ux_new[wall])
+        else:
+            dux = sec.gradient(ux_new, 0.0)
+            duz = sec.gradient(uz, 0.0)
+            duy = sec.gradient(uy, 0.0)
+            dudx = (c0 * ux_new - hist["ux"]) / dx
+            G2 = (dux[0] ** 2 + dux[1] ** 2 + 2.0 * duz[0] ** 2 + 2.0 * duy[1] ** 2
+                  + (duz[1] + duy[0]) ** 2 + 2.0 * dudx**2)
+            Pk = mut * G2
+            ut = -uz[wall] * sec.wall_ny + uy[wall] * sec.wall_nz
+            Ut = np.sqrt(ux_new[wall] ** 2 + ut**2)
+            tau_w = cw * Ut
+            kw = st.k[wall]
+            Pk[wall] = ke.wall_production(tau_w, kw, yP)
+            eps_w = ke.wall_epsilon(kw, yP)
+            eps_sink = st.eps.copy()
+            eps_sink[wall] = eps_w
+
+            Sk = src["k"]
+            Se = src["eps"]
+            # k equation
+            gk = sec.interp(mu + mut / ke.SIGMA_K)
+            dk, kPN, kNP = sec.transport(flux, gk, "upwind")
+            kref = src["k_ref"] if src["k_ref"] is not None else st.k
+            eref = src["eps_ref"] if src["eps_ref"] is not None else st.eps
+            dk = dk + c0 * ax + rho * A * eps_sink / st.k + A * np.maximum(-Sk, 0.0) / kref
+            bk = ax * hist["k"] + A * (Pk + np.maximum(Sk, 0.0))
+            if relax_turb < 1.0:  # implicit (Patankar) under-relaxation
+                bk += (1.0 - relax_turb) / relax_turb * dk * st.k
+                dk = dk / relax_turb
+            k_new = splu(sec.matrix(dk, kPN, kNP)).solve(bk)
+            self.check("k", k_new, positive=True)
+            # epsilon equation (fixed value in the wall cells)
+            ge = sec.interp(mu + mut / ke.SIGMA_EPS)
+            de, ePN, eNP = sec.transport(flux, ge, "upwind")
+            de = de + c0 * ax + ke.C_EPS2 * rho * A * st.eps / st.k + A * np.maximum(-Se, 0.0) / eref
+            be = ax * hist["eps"] + A * (ke.C_EPS1 * st.eps / st.k * Pk + np.maximum(Se, 0.0))
+            if relax_turb < 1.0:
+                be += (1.0 - relax_turb) / relax_turb * de * st.eps
+                de = de / relax_turb
+            big = 1e12 * de[wall]
+            de[wall] += big
+            be[wall] += big * ke.wall_epsilon(k_new[wall], yP)
+            eps_new = splu(sec.matrix(de, ePN, eNP)).solve(be)
+            self.check("epsilon", eps_new, positive=True)
+
+        # ---------------- change and update
+        ref_u = self.Ub
+        ch = max(
+            np.abs(ux_new - st.ux).max() / ref_u,
+            np.abs(uy - st.uy).max() / ref_u,
+            np.abs(uz - st.uz).max() / ref_u,
+            np.abs(k_new / st.k - 1.0).max(),
+            np.abs(eps_new / st.eps - 1.0).max(),
+        )
+        st.ux, st.uy, st.uz, st.p, st.k, st.eps, st.flux, st.G = ux_new, uy, uz, p, k_new, eps_new, flux, G
+        st.tau_w = tau_w
+        return ch
+
+
+def _source_slices(sources, i, n):
+    if sources is None:
+        z = np.zeros(n)
+        return {"mx": z, "fy": z, "fz": z, "k": z, "eps": z, "k_ref": None, "eps_ref": None}
+    m = sources.momentum
+    return {
+        "mx": m[0, i].ravel(),
+        "fy": m[1, i].ravel(),
+        "fz": m[2, i].ravel(),
+        "k": sources.k[i].ravel(),
+        "eps": sources.epsilon[i].ravel(),
+        "k_ref": None if sources.k_reference is None else sources.k_reference[i].ravel(),
+        "eps_ref": None if sources.epsilon_reference is None else sources.epsilon_reference[i].ravel(),
+    }
+
+
+def _initial_state(mesh, bulk_velocity, k0, eps0, profile="uniform"):
+    sec = mesh.geometry()
+    n = sec.n
+    if profile == "power":
+        r = np.hypot(sec.cy, sec.cz) / mesh.radius
+        ux = np.maximum(1.0 - r, 1e-3) ** (1.0 / 7.0)
+        ux *= bulk_velocity * sec.area.sum() / (sec.area @ ux)
+    else:
+        ux = np.full(n, float(bulk_velocity))
+    return _State(ux=ux, uy=np.zeros(n), uz=np.zeros(n), p=np.zeros(n), k=np.full(n, float(k0)),
+                  eps=np.full(n, float(eps0)), flux=np.zeros(sec.nf))
+
+
+def solve(
+    mesh,
+    gas,
+    bulk_velocity,
+    inlet_k=1.0,
+    inlet_epsilon=None,
+    sources=None,
+    *,
+    tol=1e-6,
+    max_iterations=3000,
+    station_tol=None,
+    station_iterations=(2, 60),
+    pseudo_step=None,
+    initial=None,
+    momentum_scheme="hybrid",
+    laminar=False,
+    turbulence_relaxation=1.0,
+    progress=False,
+):
+    """Solve the steady gas flow on ``mesh``; returns a :class:`GasField`.
+
+    mesh: :class:`PipeMesh`; gas: :class:`GasProperties`; bulk_velocity [m s-1] (uniform
+    inlet velocity when developing, prescribed bulk velocity when periodic);
+    inlet_k [m2 s-2], inlet_epsilon [m2 s-3] (None: C_mu^(3/4) k^(3/2)/(0.07 D)); also the
+    initial turbulence of the periodic mode.  sources: :class:`Sources` or None.
+    tol: convergence on the max normalised change of an outer iteration (periodic mode);
+    station_tol (developing; default tol): same, per station; station_iterations: (min, max)
+    outer iterations per station.  pseudo_step [m]: pseudo axial step of the periodic mode
+    (default 4 D).  initial: a :class:`GasField` to start from (periodic mode).
+    turbulence_relaxation: implicit under-relaxation of k and epsilon in the periodic mode.
+    laminar: solve laminar flow (mu_t = 0, no k-epsilon; for verification).
+    momentum_scheme: "hybrid" (default), "upwind" or "central" cross-section convection.
+
+    Raises :class:`SolverDivergence` on non-finite or non-positive k/epsilon, or when the
+    periodic mode does not reach ``tol`` within ``max_iterations`` (message says so).
+    """
+    t0 = time.perf_counter()
+    if bulk_velocity <= 0:
+        raise ValueError(f"bulk_velocity = {bulk_velocity}: must be > 0")
+    if inlet_epsilon is None:
+        inlet_epsilon = ke.inlet_epsilon(inlet_k, mesh.diameter)
+    if sources is not None:
+        _check_sources(mesh, sources)
+    solver = _StationSolver(mesh, gas, bulk_velocity, momentum_scheme)
+    sec = mesh.geometry()
+    n = sec.n
+    nx = mesh.nx
+    out = {v: np.empty((nx, n)) for v in ("ux", "uy", "uz", "p", "k", "eps")}
+    G = np.empty(nx)
+    tau = np.empty((nx, sec.nt))
+    residuals = []
+    iters = np.zeros(nx, dtype=np.int64)
+    converged = True
+    bar = _progress(nx if mesh.mode == "developing" else max_iterations, progress)
+
+    if mesh.mode == "periodic":
+        st = _initial_state(mesh, bulk_velocity, inlet_k, inlet_epsilon, profile="power")
+        if initial is not None:
+            st = _state_from_field(initial, 0)
+        # pseudo-marching with a switched-evolution step: the pseudo axial step grows while the
+        # residual falls and is cut (with a rollback) when an iteration blows up
+        dx = pseudo_step if pseudo_step is not None else 1.0 * mesh.diameter
+        dx_max = 32.0 * mesh.diameter if pseudo_step is None else pseudo_step
+        src = _source_slices(sources, 0, n)
+        converged = False
+        prev = np.inf
+        cuts = 0
+        for it in range(max_iterations):
+            hist = {"ux": st.ux.copy(), "uy": st.uy.copy(), "uz": st.uz.copy(), "k": st.k.copy(),
+                    "eps": st.eps.copy()}
+            saved = st.copy()
+            try:
+                ch = solver.iterate(st, hist, 1.0, dx, src, laminar, turbulence_relaxation)
+            except SolverDivergence as err:
+                ch, last_err = np.inf, err
+            if not np.isfinite(ch) or (ch > 10.0 * prev and ch > 1e-2):
+                st = saved
+                dx *= 0.25
+                cuts += 1
+                if dx < 1e-3 * mesh.diameter or cuts > 40:
+                    raise SolverDivergence(
+                        f"periodic gas solve diverged: pseudo step cut to {dx:.3g} m without recovery"
+                        + (f"; last failure: {last_err}" if not np.isfinite(ch) else "")
+                    )
+                residuals.append(ch if np.isfinite(ch) else np.nan)
+                continue
+            residuals.append(ch)
+            if ch < prev:
+                dx = min(dx * 1.5, dx_max)
+            prev = ch
+            bar.update(1)
+            if ch < tol:
+                converged = True
+                break
+        iters[0] = len(residuals)
+        bar.close()
+        if not converged:
+            raise SolverDivergence(
+                f"periodic gas solve did not converge: residual {residuals[-1]:.3g} > tol {tol:.3g} "
+                f"after {max_iterations} iterations"
+            )
+        _store(out, G, tau, 0, st)
+    else:
+        stol = tol if station_tol is None else station_tol
+        xc = mesh.x
+        st = _initial_state(mesh, bulk_velocity, inlet_k, inlet_epsilon)
+        prev1 = st.copy()
+        prev2 = None
+        x_prev, h_prev = 0.0, None
+        for i in range(nx):
+            solver.station = i
+            solver.x = xc[i]
+            h = xc[i] - x_prev
+            if prev2 is None:
+                c0 = 1.0
+                hist = {v: getattr(prev1, v).copy() for v in _VARS}
+            else:  # variable-step BDF2
+                om = h / h_prev
+                c0 = (1.0 + 2.0 * om) / (1.0 + om)
+                a1, a2 = 1.0 + om, om * om / (1.0 + om)
+                hist = {v: a1 * getattr(prev1, v) - a2 * getattr(prev2, v) for v in _VARS}
+            st = prev1.copy()
+            src = _source_slices(sources, i, n)
+            lo, hi = station_iterations
+            ok = False
+            for it in range(hi):
+                ch = solver.iterate(st, hist, c0, h, src, laminar)
+                residuals.append(ch)
+                if it + 1 >= lo and ch < stol:
+                    ok = True
+                    break
+            iters[i] = it + 1
+            converged &= ok
+            _store(out, G, tau, i, st)
+            prev2, prev1 = prev1, st
+            x_prev, h_prev = xc[i], h
+            bar.update(1)
+        bar.close()
+
+    shape = mesh.shape
+    p = out["p"].copy()
+    if mesh.mode == "developing":
+        # section-mean pressure relative to the outlet: integrate -dp/dx backward (trapezoidal)
+        dxs = mesh.dx
+        pbar = np.empty(nx)
+        pbar[-1] = G[-1] * 0.5 * dxs[-1]
+        for i in range(nx - 2, -1, -1):
+            pbar[i] = pbar[i + 1] + 0.5 * (G[i] + G[i + 1]) * 0.5 * (dxs[i] + dxs[i + 1])
+        p += pbar[:, None]
+    return GasField(
+        mesh=mesh,
+        gas=gas,
+        bulk_velocity=float(bulk_velocity),
+        ux=out["ux"].reshape(shape),
+        uy=out["uy"].reshape(shape),
+        uz=out["uz"].reshape(shape),
+        p=p.reshape(shape),
+        k=out["k"].reshape(shape),
+        epsilon=out["eps"].reshape(shape),
+        pressure_gradient=G,
+        wall_shear=tau,
+        residuals=np.asarray(residuals),
+        station_iterations=iters,
+        converged=bool(converged),
+        wall_time=time.perf_counter() - t0,
+    )
+
+
+def _check_sources(mesh, sources):
+    for name, arr in (("momentum", sources.momentum), ("k", sources.k), ("epsilon", sources.epsilon)):
+        want = (3,) + mesh.shape if name == "momentum" else mesh.shape
+        if arr.shape != want:
+            raise ValueError(f"{name} source has shape {arr.shape}, the mesh needs {want}")
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            idx = np.argwhere(bad)[0]
+            i, j, k = idx[-3:]
+            raise ValueError(f"{name} source is not finite ({arr[tuple(idx)]}) at station {i}, ring {j}, sector {k}")
+
+
+def _store(out, G, tau, i, st):
+    out["ux"][i] = st.ux
+    out["uy"][i] = st.uy
+    out["uz"][i] = st.uz
+    out["p"][i] = st.p
+    out["k"][i] = st.k
+    out["eps"][i] = st.eps
+    G[i] = st.G
+    tau[i] = st.tau_w
+
+
+def _state_from_field(f, i):
+    sec = f.mesh.geometry()
+    return _State(ux=f.ux[i].ravel().copy(), uy=f.uy[i].ravel().copy(), uz=f.uz[i].ravel().copy(),
+                  p=f.p[i].ravel().copy(), k=f.k[i].ravel().copy(), eps=f.epsilon[i].ravel().copy(),
+                  flux=f.face_flux.copy() if f.face_flux is not None else np.zeros(sec.nf))
+
+
+class _NoBar:
+    def update(self, n=1):
+        pass
+
+    def close(self):
+        pass
+
+
+def _progress(total, enabled):
+    if not enabled:
+        return _NoBar()
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc="gas", unit="it", leave=False)
