@@ -1,0 +1,213 @@
+"""The eulag command line: bad input stops early with one line and exit status 2; a tiny
+single-phase run writes a dataset that passes the schema check."""
+
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from eulag.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+SHARED = Path(os.environ.get("EULAG_SHARED_DATA", ROOT.parent / "shared" / "data")).parent
+CHECK_DATASET = SHARED / "tools" / "check_dataset.py"
+
+TINY = """\
+name = "tiny"
+
+[pipe]
+diameter = 0.0305
+length = 4.0
+mode = "periodic"
+
+[gas]
+density = 1.205
+viscosity = 1.81e-5
+bulk_velocity = 10.0
+inlet_k = 1.0
+
+[numerics]
+radial_cells = 8
+azimuthal_cells = 16
+"""
+
+
+def run_cli(capsys, *argv):
+    status = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+@pytest.mark.parametrize("label, old, new, key, value, allowed", [
+    ("negative diameter", "diameter = 0.0305", "diameter = -0.0305", "pipe.diameter", "-0.0305",
+     "> 0"),
+    ("zero velocity", "bulk_velocity = 10.0", "bulk_velocity = 0.0", "gas.bulk_velocity", "0.0",
+     "> 0"),
+    ("unknown key", "length = 4.0", "length = 4.0\nroughness = 1e-5", "pipe.roughness", "1e-05",
+     "diameter, length"),
+    ("odd azimuthal cells", "azimuthal_cells = 16", "azimuthal_cells = 15",
+     "numerics.azimuthal_cells", "15", "even"),
+])
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys, label,
+                                                            old, new, key, value, allowed):
+    monkeypatch.chdir(tmp_path)
+    case = tmp_path / "bad.toml"
+    case.write_text(TINY.replace(old, new))
+    status, out, err = run_cli(capsys, "run", case, "-o", tmp_path / "out.nc")
+    assert status == 2
+    assert out == ""
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"eulag: error: {key} = {value}"), err
+    assert "allowed" in lines[0] and allowed in lines[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]  # no output, no temp file
+
+
+def test_bad_arguments_exit_2_with_one_line(tmp_path, capsys):
+    case = tmp_path / "tiny.toml"
+    case.write_text(TINY)
+    status, out, err = run_cli(capsys, "run", case, "--parcels", "0")
+    assert status == 2 and len(err.splitlines()) == 1 and "--parcels" in err
+    status, out, err = run_cli(capsys, "run", tmp_path / "absent.toml")
+    assert status == 2 and len(err.splitlines()) == 1 and "no such case file" in err
+    status, out, err = run_cli(capsys, "run", case, "-o", tmp_path / "no_dir" / "out.nc")
+    assert status == 2 and len(err.splitlines()) == 1 and "does not exist" in err
+    status, out, err = run_cli(capsys, "frobnicate")
+    assert status == 2 and len(err.splitlines()) == 1
+    assert list(tmp_path.iterdir()) == [case]
+
+
+def test_particle_case_is_refused_honestly(tmp_path, capsys):
+    case = tmp_path / "two_phase.toml"
+    case.write_text(TINY + "\n[particles]\ndiameter = 200e-6\ndensity = 1020.0\nmass_loading = 2.2\n")
+    status, out, err = run_cli(capsys, "run", case, "-o", tmp_path / "out.nc")
+    assert status == 1
+    assert len(err.splitlines()) == 1 and "particle phase is not in" in err
+    assert list(tmp_path.iterdir()) == [case]
+
+
+@pytest.mark.parametrize("command", [["plot", "out.nc"], ["study", "scenes"], ["sweep", "a.toml"]])
+def test_unimplemented_commands_say_so(capsys, command):
+    status, out, err = run_cli(capsys, *command)
+    assert status == 1 and len(err.splitlines()) == 1 and "not available" in err
+
+
+def test_single_phase_run_end_to_end(tmp_path, monkeypatch, capsys):
+    xr = pytest.importorskip("xarray")
+    from fluids.friction import Colebrook
+
+    from eulag.config import Case
+
+    monkeypatch.chdir(tmp_path)
+    case_path = tmp_path / "tiny.toml"
+    case_path.write_text(TINY)
+    status, out, err = run_cli(capsys, "run", case_path)
+    assert status == 0, err
+    assert "friction f_D" in out and "Colebrook" in out and "wall y+" in out
+    result = tmp_path / "tiny.nc"  # default: <case name>.nc in the current directory
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.nc", "tiny.toml"]
+
+    if not CHECK_DATASET.exists():
+        pytest.skip(f"schema checker {CHECK_DATASET} not available")
+    check = subprocess.run([sys.executable, str(CHECK_DATASET), str(result)],
+                           capture_output=True, text=True)
+    assert check.returncode == 0, check.stdout + check.stderr
+
+    with xr.open_dataset(result) as ds:
+        assert ds.attrs["Conventions"] == "CF-1.10"
+        assert ds.attrs["converged"] == "true"
+        assert ds.attrs["seed"] == 1 and "time_gas_solve" in ds.attrs
+        assert Case.from_attrs(ds.attrs) == Case.from_toml(case_path)
+        assert dict(ds.sizes)["x"] == 1 and ds.sizes["r"] == 8 and ds.sizes["theta"] == 16
+        for name in ds.variables:
+            if name not in ("iteration", "gas_iteration"):
+                assert "units" in ds[name].attrs and "long_name" in ds[name].attrs, name
+        assert ds["residual"].size == 1
+        assert float(ds["residual"][0]) == float(ds["gas_residual"][-1])
+        assert float(ds["residual"][0]) <= 1e-6
+        assert (ds["pressure_gradient_single_phase"] == ds["pressure_gradient"]).all()
+        assert ds["wall_yplus"].dims == ("x", "theta")
+        area = float(ds["cell_area"].sum())
+        assert area == pytest.approx(math.pi * 0.0305 ** 2 / 4, rel=1e-10)
+        # coarse mesh: the friction factor is still the physics, within 10 % of Colebrook
+        f_ref = Colebrook(10.0 * 0.0305 * 1.205 / 1.81e-5, 0.0)
+        assert float(ds["friction_factor"][0]) == pytest.approx(f_ref, rel=0.10)
+        ub = float((ds["gas_ux"][0] * ds["cell_area"]).sum()) / area
+        assert ub == pytest.approx(10.0, rel=1e-3)
+
+    # --resume on a finished run of the same case succeeds without recomputing
+    mtime = result.stat().st_mtime_ns
+    status, out, err = run_cli(capsys, "run", case_path, "--resume", "--quiet")
+    assert status == 0 and out == "" and err == ""
+    assert result.stat().st_mtime_ns == mtime
+
+
+def test_python_dash_m_eulag(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "eulag", "--version"], capture_output=True,
+                          text=True, cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stdout.startswith("eulag ")
+
+
+def test_solver_divergence_exits_1_with_one_line_and_no_file(tmp_path, monkeypatch, capsys):
+    import rans
+
+    def diverge(*args, **kwargs):
+        raise rans.SolverDivergence("k = nan at x = 0.5 m, r = 0.01 m, theta = 90 deg")
+
+    monkeypatch.setattr(rans, "solve", diverge)
+    case = tmp_path / "tiny.toml"
+    case.write_text(TINY)
+    status, out, err = run_cli(capsys, "run", case, "-o", tmp_path / "out.nc")
+    assert status == 1
+    assert err.splitlines() == ["eulag: error: k = nan at x = 0.5 m, r = 0.01 m, theta = 90 deg"]
+    assert list(tmp_path.iterdir()) == [case]
+
+
+def test_unconverged_gas_solve_is_written_flagged_and_exits_1(tmp_path, monkeypatch, capsys):
+    """A solver that returns (rather than raises) with converged = False: the dataset is
+    written, flagged converged = "false", and the run exits 1 with one line."""
+    xr = pytest.importorskip("xarray")
+    import rans
+
+    real_solve = rans.solve
+
+    class Unconverged:
+        converged = False
+
+        def __init__(self, field):
+            self._field = field
+
+        def __getattr__(self, name):
+            return getattr(self._field, name)
+
+    monkeypatch.setattr(rans, "solve", lambda *a, **kw: Unconverged(real_solve(*a, **kw)))
+    case = tmp_path / "tiny.toml"
+    case.write_text(TINY)
+    status, out, err = run_cli(capsys, "run", case, "-o", tmp_path / "out.nc", "--quiet")
+    assert status == 1 and len(err.splitlines()) == 1 and "did not converge" in err
+    with xr.open_dataset(tmp_path / "out.nc") as ds:
+        assert ds.attrs["converged"] == "false"
+
+
+def test_write_dataset_is_atomic(tmp_path, monkeypatch):
+    xr = pytest.importorskip("xarray")
+    import numpy as np
+
+    from eulag.output import write_dataset
+
+    target = tmp_path / "out.nc"
+    write_dataset(xr.Dataset({"a": ("x", np.arange(3.0))}), target)
+    before = target.read_bytes()
+
+    def broken(self, path, *args, **kwargs):
+        Path(path).write_bytes(b"partial")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", broken)
+    with pytest.raises(OSError, match="disk full"):
+        write_dataset(xr.Dataset({"a": ("x", np.arange(5.0))}), target)
+    assert target.read_bytes() == before  # the old file is untouched
+    assert [p.name for p in tmp_path.iterdir()] == ["out.nc"]  # no temporary left behind
