@@ -16,7 +16,7 @@ the Random123 known-answer vectors in ``tests/test_collisions_random.py``.
 
 Key layout (64-bit key, 128-bit counter, four 32-bit words):
 
-    key      = seed                               (0 <= seed < 2**64)
+    key      = seed                               (0 <= seed < 2**63)
     counter0 = draw & 0xffffffff                  (0 <= draw < 2**48)
     counter1 = (stream << 16) | (draw >> 32)      (0 <= stream < 2**16)
     counter2 = parcel                             (0 <= parcel < 2**32)
@@ -108,7 +108,7 @@ def random_block(seed, pass_, parcel, stream, draw):
     c2 = np.uint64(parcel) & _MASK32
     c3 = np.uint64(pass_) & _MASK32
     o0, o1, o2, o3 = philox4x32(c0, c1, c2, c3, k0, k1)
-    return (o0 << _S32) | o1, (o2 << _S32) | o3
+    return (np.uint64(o0) << _S32) | np.uint64(o1), (np.uint64(o2) << _S32) | np.uint64(o3)
 
 
 @njit(cache=True)
@@ -121,14 +121,14 @@ def _bits_to_unit(a):
 def uniform(seed, pass_, parcel, stream, draw):
     """Uniform double in [0, 1) (53 random bits) for the key (seed, pass, parcel, stream, draw)."""
     a, _ = random_block(seed, pass_, parcel, stream, draw)
-    return _bits_to_unit(a)
+    return _bits_to_unit(np.uint64(a))
 
 
 @njit(cache=True)
 def uniform_pair(seed, pass_, parcel, stream, draw):
     """Two independent uniforms in [0, 1) from one key (the two 64-bit halves of the block)."""
     a, b = random_block(seed, pass_, parcel, stream, draw)
-    return _bits_to_unit(a), _bits_to_unit(b)
+    return _bits_to_unit(np.uint64(a)), _bits_to_unit(np.uint64(b))
 
 
 @njit(cache=True)
@@ -139,8 +139,8 @@ def normal_pair(seed, pass_, parcel, stream, draw):
     with u₁, u₂ the two 53-bit uniforms of the Philox block (1 − u₁ ∈ (0, 1]).
     """
     a, b = random_block(seed, pass_, parcel, stream, draw)
-    u1 = _bits_to_unit(a)
-    u2 = _bits_to_unit(b)
+    u1 = _bits_to_unit(np.uint64(a))
+    u2 = _bits_to_unit(np.uint64(b))
     rad = math.sqrt(-2.0 * math.log(1.0 - u1))
     phi = _TWO_PI * u2
     return rad * math.cos(phi), rad * math.sin(phi)
