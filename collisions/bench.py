@@ -153,8 +153,8 @@ def run(n_calls=2_000_000):
     n_p = 1e9  # 1/m3; f ~ pi (2 D_p)^2 n_p <|g|> ~ 100 1/s
     for name, dt in (("inter-particle, P ~ 0.01 (typical step)", 1e-4), ("inter-particle, P ~ 1 (collides)", 1.0)):
         first, best, (hits, p_sum) = _time(ipc, vel0, mean, rms, n_p, dt, n_calls)
-        rows.append((name, first, n_calls / best,
-                     f"collisions {hits} vs sum of P {p_sum:.0f} ({(hits - p_sum) / math.sqrt(max(p_sum, 1)):+.1f} sd)"))
+        z = (hits - p_sum) / math.sqrt(max(p_sum, 1.0))
+        rows.append((name, first, n_calls / best, f"collisions {hits} vs sum of P {p_sum:.0f} ({z:+.1f} sd)"))
     first, best, _ = _time(_standin_step, vel0, n_calls)
     rows.append(("stand-in particle step (drag + 3 normals)", first, n_calls / best, "for scale"))
     return rows

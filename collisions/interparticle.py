@@ -6,11 +6,11 @@ stochastic model
 1. builds a fictitious partner from the cell statistics of the previous pass:
    diameter D₂ (the caller draws it from the local size distribution, see
    ``sample_size_class``), velocity
-       u₂ = ū₂ + R(St) u′₁ + σ₂ sqrt(1 − R²) ξ,   u′₁ = u₁ − ū₁,   ξ ~ N(0, 1) per component,
-       R(St) = exp(−0.55 St^0.4),  St = τ_p/T_L                   (Sommerfeld 2001, eq. 19–20)
+       u₂ = ū₂ + R(St) u′₁ + σ₂ sqrt(1 − R²) ξ,  u′₁ = u₁ − ū₁,  ξ ~ N(0, 1) per component,
+       R(St) = exp(−0.55 St^0.4),  St = τ_p/T_L                   (Sommerfeld 2001; PHYSICS.md §4.1)
    and angular velocity ω₂ = ω̄ (+ σ_ω ξ′ if the cell rms is given)   [§12.7]
 2. collides with probability P = 1 − exp(−f Δt),
-       f = (π/4) (D₁ + D₂)² |u₁ − u₂| n_p                           [§12.9; Sommerfeld 2001, eq. 14]
+       f = (π/4) (D₁ + D₂)² |u₁ − u₂| n_p                           [§12.9; Sommerfeld 2001]
    (P is never clipped: the exponential form is the Poisson probability of at
    least one collision in Δt)
 3. samples the impact point uniformly on the full collision disc (L = sqrt(U₁),
@@ -19,7 +19,8 @@ stochastic model
    particle only; the partner is discarded                         [§4.1 step 5–6, §4.2]
 
 Masses enter only through m₂/(m₁ + m₂) = D₂³/(D₁³ + D₂³) (one material), so no
-density is needed.
+density is needed.  Equation numbers of the papers are not quoted: they were not
+checked against the originals; PHYSICS.md gives the provenance of each formula.
 """
 
 import math
@@ -50,7 +51,7 @@ def sommerfeld_2001_correlation(stokes):
     """Velocity correlation of colliding particles R(St) = exp(−0.55 St^0.4) [-].
 
     stokes: St = τ_p/T_L [-] (τ_p particle response time, T_L fluid Lagrangian
-    integral time). Sommerfeld (2001), IJMF 27, eq. (19); PHYSICS.md §4.1 step 3.
+    integral time). Sommerfeld (2001), IJMF 27:1829–1858; PHYSICS.md §4.1 step 3.
     R → 1 for St → 0 (tracers move with their neighbours), R → 0 for St → ∞.
     """
     return math.exp(-0.55 * stokes**0.4)
@@ -61,7 +62,7 @@ def kinetic_collision_frequency(d1, d2, number_density, relative_speed):
     """Collision frequency of one particle with a partner class, f = (π/4)(D₁ + D₂)² |g| n [1/s].
 
     d1, d2 [m]; number_density n [1/m3]; relative_speed |g| [m/s]. Kinetic theory of
-    hard spheres; Sommerfeld (2001), eq. (14); PHYSICS.md §4.1 step 4.
+    hard spheres; Sommerfeld (2001); PHYSICS.md §4.1 step 4.
     """
     s = d1 + d2
     return _QUARTER_PI * s * s * relative_speed * number_density
@@ -119,7 +120,7 @@ def impact_normal(gx, gy, gz, u1, u2):
     g = u₁ − u₂ [m/s] (|g| > 0); u1, u2 uniforms in [0, 1). In the partner's rest frame,
     with ĝ = g/|g| and any orthonormal e₁, e₂ ⊥ ĝ: L = sqrt(u1) (pdf 2L on [0, 1]),
     ψ = 2π u2, sin Φ = L, n = cos Φ ĝ + sin Φ (cos ψ e₁ + sin ψ e₂); hence g·n = |g| cos Φ ≥ 0.
-    Sommerfeld (2001), Sec. 3 (L, Y, Z, Φ, Ψ construction); PHYSICS.md §4.1 step 5 (full disc).
+    Sommerfeld (2001) (L, Y, Z, Φ, Ψ construction); PHYSICS.md §4.1 step 5 (full disc).
     """
     g = math.sqrt(gx * gx + gy * gy + gz * gz)
     hx = gx / g
@@ -156,9 +157,10 @@ def impact_normal(gx, gy, gz, u1, u2):
 def hard_sphere_pair_impulse(gx, gy, gz, sx, sy, sz, nx, ny, nz, e, mu):
     """Impulse per reduced mass J/m* on sphere 1 in a collision of two hard spheres.
 
-    PHYSICS.md §4.2 (Crowe et al. 2012, Sec. 5.4; Sommerfeld 2001, eqs. 21–26 in vector
-    form). g = u₁ − u₂ [m/s]; s = r₁ ω₁ + r₂ ω₂ [m/s]; n unit line of centres from 1 to 2
-    with g_n = g·n > 0; e, mu [-].  G = g + s × n, G_t = G − (G·n) n:
+    PHYSICS.md §4.2 (vector form of the impulse equations of Sommerfeld 2001 and Crowe et al.
+    2012; checked there for momentum conservation and the stick condition).
+    g = u₁ − u₂ [m/s]; s = r₁ ω₁ + r₂ ω₂ [m/s]; n unit line of centres from 1 to 2 with
+    g_n = g·n > 0; e, mu [-].  G = g + s × n, G_t = G − (G·n) n:
 
         J/m* = −(1+e) g_n n + J_t/m*
         non-sliding if |G_t| ≤ (7/2) μ (1+e) g_n:  J_t/m* = −(2/7) G_t

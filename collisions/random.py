@@ -58,7 +58,7 @@ RNG_STREAM = 3
 RNG_DRAW = 4
 RNG_STATE_SIZE = 5
 
-# Philox-4x32 constants (Salmon et al. 2011, Table 2; Random123 philox.h).
+# Philox-4x32 constants (Salmon et al. 2011; Random123 philox.h).
 _M0 = np.uint64(0xD2511F53)
 _M1 = np.uint64(0xCD9E8D57)
 _W0 = np.uint64(0x9E3779B9)
@@ -77,7 +77,8 @@ def philox4x32(c0, c1, c2, c3, k0, k1):
     """Philox-4x32-10 block: four 32-bit counter words and two key words → four 32-bit words.
 
     All arguments and results are ``np.uint64`` holding 32-bit values.
-    Salmon et al. (2011), Sec. 4.2; ten rounds, key bumped between rounds.
+    Salmon et al. (2011); Random123 ``philox4x32_R`` with R = 10: ten rounds, the key bumped
+    by the Weyl constants between rounds.
     """
     for r in range(10):
         if r > 0:

@@ -28,7 +28,9 @@ ROUGHNESS_STD_DEG = (0.0, 5.0, 10.0)
 
 @lru_cache(maxsize=None)
 def make_rebound_sampler(options=WallOptions()):
-    """Build ``rebound_angles(alpha_deg, dgamma_deg, n, seed, out)``: n rebound angles [deg] into out.
+    """Build ``rebound_angles(alpha_deg, dgamma_deg, n, seed, out, speed_ratio)``.
+
+    Fills ``out`` with n rebound angles [deg] and ``speed_ratio`` with |v′|/|v| [-].
 
     Impacts of a non-rotating sphere (r_p = 100 µm, speed 10 m/s; the angles do not depend
     on either) on the bottom of a pipe of R = 1 m, in the x–y plane at angle α to the wall;
@@ -37,7 +39,7 @@ def make_rebound_sampler(options=WallOptions()):
     kernel = make_wall_collision(options)
 
     @njit(cache=True)
-    def rebound_angles(alpha_deg, dgamma_deg, n, seed, out):
+    def rebound_angles(alpha_deg, dgamma_deg, n, seed, out, speed_ratio):
         r_p = 1e-4
         pipe_radius = 1.0
         a = math.radians(alpha_deg)
@@ -59,6 +61,7 @@ def make_rebound_sampler(options=WallOptions()):
             kernel(pos, vel, omega, uf, dv, r_p, pipe_radius, dg, 0.0, rng)
             speed = math.sqrt(vel[0] ** 2 + vel[1] ** 2 + vel[2] ** 2)
             out[i] = math.degrees(math.asin(min(1.0, vel[1] / speed)))  # n0 = +e_y at the bottom
+            speed_ratio[i] = speed / 10.0
         return out
 
     return rebound_angles
@@ -69,14 +72,36 @@ def rebound_angle_table(impact_angles_deg=IMPACT_ANGLES_DEG, roughness_std_deg=R
     """Mean rebound angle [deg], array [len(impact_angles), len(roughness_std)], and its standard error."""
     sampler = make_rebound_sampler(options)
     out = np.empty(samples)
+    ratio = np.empty(samples)
     mean = np.empty((len(impact_angles_deg), len(roughness_std_deg)))
     sem = np.empty_like(mean)
     for i, a in enumerate(impact_angles_deg):
         for j, dg in enumerate(roughness_std_deg):
-            sampler(float(a), float(dg), samples, seed, out)
+            sampler(float(a), float(dg), samples, seed, out, ratio)
             mean[i, j] = out.mean()
             sem[i, j] = out.std(ddof=1) / math.sqrt(samples) if samples > 1 else 0.0
     return mean, sem
+
+
+def coefficient_angle_sensitivity(impact_angles_deg=IMPACT_ANGLES_DEG, dgamma_deg=5.0, samples=20000, seed=1):
+    """Sensitivity to evaluating e_w, μ_w at the effective (α + γ₁) or the nominal (α) angle.
+
+    PHYSICS.md §3.1 / §12.1. Returns {option: (mean rebound angle [deg], mean |v′|/|v| [-])},
+    each an array over ``impact_angles_deg``, for roughness ``dgamma_deg`` [deg].
+    """
+    result = {}
+    out = np.empty(samples)
+    ratio = np.empty(samples)
+    for angle in ("effective", "nominal"):
+        sampler = make_rebound_sampler(WallOptions(coefficient_angle=angle))
+        beta = np.empty(len(impact_angles_deg))
+        speed = np.empty(len(impact_angles_deg))
+        for i, a in enumerate(impact_angles_deg):
+            sampler(float(a), float(dgamma_deg), samples, seed, out, ratio)
+            beta[i] = out.mean()
+            speed[i] = ratio.mean()
+        result[angle] = (beta, speed)
+    return result
 
 
 def format_table(impact_angles_deg, roughness_std_deg, mean, sem):
@@ -98,6 +123,13 @@ def main(argv=None):
     print(f"Rough-wall rebound statistics (default WallOptions; non-rotating sphere; "
           f"{args.samples} impacts per entry; ± standard error)")
     print(format_table(IMPACT_ANGLES_DEG, ROUGHNESS_STD_DEG, mean, sem))
+    sens = coefficient_angle_sensitivity(samples=args.samples, seed=args.seed)
+    print("\nSensitivity (dgamma = 5 deg): e_w, mu_w at the effective angle alpha + gamma1 (default) "
+          "or at the nominal alpha")
+    print("impact angle [deg] | rebound [deg] eff. | rebound [deg] nom. | |v'|/|v| eff. | |v'|/|v| nom.")
+    for i, a in enumerate(IMPACT_ANGLES_DEG):
+        print(f"{a:18.1f} | {sens['effective'][0][i]:18.2f} | {sens['nominal'][0][i]:18.2f} | "
+              f"{sens['effective'][1][i]:13.3f} | {sens['nominal'][1][i]:13.3f}")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ One impact, in order (``make_wall_collision`` builds the kernel):
 3. lateral roughness angle γ₂ ~ N(0, Δγ) (option: none)           [§3.3, §12.2]
 4. virtual-wall normal n″ = cos γ₂ (cos γ₁ n₀ − sin γ₁ t₀) + sin γ₂ b₀
 5. e_w = max(0.8, 1 − 0.01 α_c), μ_w = max(0.1, 0.4 − 0.015 α_c), α_c [deg] the
-   effective angle α + γ₁ (option: nominal α)                     [§3.1, §12.1; seed eq. for e_w, μ_w]
+   effective angle α + γ₁ (option: nominal α)                     [§3.1, §12.1; seed]
 6. hard-sphere impulse rebound on n″, sliding or sticking, with spin [§3.4]
 7. if the rebound does not leave the real wall (v′·n₀ ≤ 0), impact again with a
    new roughness angle, at most ``max_impacts`` times in all      [§3.3, "multiple collisions"]
@@ -75,7 +75,7 @@ def sommerfeld_huber_1999_restitution(alpha_deg):
     """Wall restitution e_w = max(0.8, 1 − 0.01 α) [-], α [deg].
 
     Glass beads on steel, fit to Sommerfeld & Huber (1999) as used by Laín & Sommerfeld
-    (seed, coefficient equation after eq. 15); PHYSICS.md §3.1. Floor reached at α = 20°.
+    (seed, the unnumbered equation after eq. 15); PHYSICS.md §3.1. Floor reached at α = 20°.
     """
     return max(0.8, 1.0 - 0.01 * alpha_deg)
 
@@ -156,8 +156,8 @@ def roughness_angle_simple(alpha, dgamma, rng):
 def hard_sphere_wall_rebound(vel, omega, nx, ny, nz, r_p, e, mu, rotation):
     """Hard-sphere impact of a sphere on a plane wall with unit normal n (into the fluid).
 
-    PHYSICS.md §3.4 (vector form of Crowe et al. 2012, eqs. for sliding / non-sliding
-    collisions; Sommerfeld & Huber 1999).  With v_n = v·n < 0, G = v − r_p ω × n,
+    PHYSICS.md §3.4 (vector form of the sliding / non-sliding impulse equations of
+    Sommerfeld & Huber 1999 and Crowe et al. 2012).  With v_n = v·n < 0, G = v − r_p ω × n,
     G_t = G − (G·n) n:
 
         non-sliding if |G_t| ≤ (7/2) μ (1 + e) |v_n|:
@@ -167,7 +167,8 @@ def hard_sphere_wall_rebound(vel, omega, nx, ny, nz, r_p, e, mu, rotation):
 
     vel [m/s], omega [rad/s]: float64[3], updated in place; n: unit normal; r_p [m];
     e, mu [-]; rotation: if False, ω is taken as zero and not updated (the tangential
-    impulse still uses the sphere's inertia, I = (2/5) m r_p²).
+    impulse still uses the sphere's inertia, I = (2/5) m r_p²; in the contact regime such a
+    particle slides to rest at Coulomb deceleration instead of rolling).
     Returns True for a non-sliding (sticking) impact.  Does nothing (returns False)
     if v·n ≥ 0.
     """

@@ -43,6 +43,17 @@ def test_key_functions_vs_py_func_bitwise():
         assert cr.random_block(*k) == cr.random_block.py_func(*k)
 
 
+def test_fill_helpers_vs_py_func():
+    for fill in (cr.fill_uniform, cr.fill_normal):
+        a, b = np.empty(16), np.empty(16)
+        fill(3, 1, 4, cr.STREAM_INJECTION, 100, a)
+        fill.py_func(3, 1, 4, cr.STREAM_INJECTION, 100, b)
+        assert np.array_equal(a, b)
+    for w in (np.uint64(0), np.uint64(2**64 - 1), np.uint64(12345678901234567890)):
+        assert cr._bits_to_unit(w) == cr._bits_to_unit.py_func(w)
+    assert cr._bits_to_unit(np.uint64(2**64 - 1)) < 1.0
+
+
 def test_state_functions_vs_py_func_and_functional_form():
     a = cr.rng_state(7, 3, 11, cr.STREAM_COLLISION)
     b = cr.rng_state.py_func(7, 3, 11, cr.STREAM_COLLISION)

@@ -1,0 +1,390 @@
+"""Inter-particle collisions (collisions.interparticle): binary hard spheres and Sommerfeld (2001)."""
+
+import math
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numba import njit
+from scipy import integrate, stats
+
+from collisions import interparticle as ci
+from collisions import random as cr
+
+RHO = 2500.0  # kg/m3, only for the momentum bookkeeping of the tests
+
+
+def mass(d):
+    return RHO * math.pi * d**3 / 6
+
+
+def inertia(d):
+    return mass(d) * d**2 / 10
+
+
+vec = st.tuples(st.floats(-20, 20), st.floats(-20, 20), st.floats(-20, 20))
+direction = st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1)).filter(
+    lambda v: math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2) > 0.1)
+
+
+def pair_invariants(u1, w1, d1, u2, w2, d2, n):
+    """Linear momentum, angular momentum about the origin (sphere 1 at 0, sphere 2 at (r1+r2) n), KE."""
+    m1, m2 = mass(d1), mass(d2)
+    x2 = 0.5 * (d1 + d2) * n
+    p = m1 * u1 + m2 * u2
+    L = m2 * np.cross(x2, u2) + inertia(d1) * w1 + inertia(d2) * w2
+    ke = 0.5 * (m1 * u1 @ u1 + m2 * u2 @ u2 + inertia(d1) * w1 @ w1 + inertia(d2) * w2 @ w2)
+    return p, L, ke
+
+
+# ---------------------------------------------------------------------------------------------
+# binary collision of two real particles (§4.2)
+# ---------------------------------------------------------------------------------------------
+
+@given(u1=vec, u2=vec, s1=vec, s2=vec, n=direction, d1=st.floats(1e-5, 1e-3), d2=st.floats(1e-5, 1e-3),
+       e=st.floats(0, 1), mu=st.floats(0, 1))
+@settings(max_examples=400, deadline=None)
+def test_binary_pair_conserves_momentum_and_angular_momentum_energy_not_increasing(u1, u2, s1, s2, n, d1, d2, e,
+                                                                                   mu):
+    u1, u2 = np.array(u1, float), np.array(u2, float)
+    w1, w2 = np.array(s1) / (0.5 * d1), np.array(s2) / (0.5 * d2)  # spins with |r ω| ≤ 35 m/s
+    n = np.array(n) / np.linalg.norm(n)
+    gn = (u1 - u2) @ n
+    if abs(gn) < 1e-6:
+        return
+    if gn < 0:
+        n = -n
+        gn = -gn
+    p0, L0, ke0 = pair_invariants(u1, w1, d1, u2, w2, d2, n)
+    a = [u1.copy(), w1.copy(), u2.copy(), w2.copy()]
+    status = ci.hard_sphere_pair(a[0], a[1], d1, a[2], a[3], d2, n, e, mu)
+    assert status in (ci.COLLISION_STICKING, ci.COLLISION_SLIDING)
+    p1, L1, ke1 = pair_invariants(a[0], a[1], d1, a[2], a[3], d2, n)
+    scale_p = mass(d1) * np.linalg.norm(u1) + mass(d2) * np.linalg.norm(u2) + mass(max(d1, d2)) * 1e-3
+    np.testing.assert_allclose(p1, p0, rtol=0, atol=1e-12 * scale_p)
+    scale_L = (np.linalg.norm(L0) + scale_p * (d1 + d2))
+    np.testing.assert_allclose(L1, L0, rtol=0, atol=1e-12 * scale_L)
+    assert ke1 <= ke0 * (1 + 1e-12)
+    # normal restitution exact
+    assert (a[0] - a[2]) @ n == pytest.approx(-e * gn, rel=1e-9, abs=1e-9 * (gn + 1))
+
+    def slip(v1, om1, v2, om2):
+        G = v1 - v2 + np.cross(0.5 * d1 * om1 + 0.5 * d2 * om2, n)
+        return G - (G @ n) * n
+
+    G0 = slip(u1, w1, u2, w2)
+    G1 = slip(*a)
+    if status == ci.COLLISION_STICKING:
+        assert np.linalg.norm(G1) <= 1e-9 * (np.linalg.norm(G0) + gn)
+    else:
+        assert np.linalg.norm(G1 - G0) == pytest.approx(3.5 * mu * (1 + e) * gn, rel=1e-9)
+    # compiled vs py_func
+    b = [u1.copy(), w1.copy(), u2.copy(), w2.copy()]
+    assert ci.hard_sphere_pair.py_func(b[0], b[1], d1, b[2], b[3], d2, n, e, mu) == status
+    for x, y in zip(a, b):
+        np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-9)
+
+
+def test_pair_impulse_vs_py_func():
+    for args in ((1.0, -0.5, 0.2, 0.3, 0.0, -0.1, 0.6, 0.8, 0.0, 0.9, 0.4),  # sliding
+                 (1.0, 0.01, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.9, 0.4),  # sticking
+                 (-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.9, 0.4)):  # receding
+        a = ci.hard_sphere_pair_impulse(*args)
+        b = ci.hard_sphere_pair_impulse.py_func(*args)
+        assert a[6] == b[6]
+        np.testing.assert_allclose(a[:6], b[:6], rtol=1e-14, atol=1e-15)
+    assert [ci.hard_sphere_pair_impulse(*x)[6] for x in (
+        (1.0, -0.5, 0.2, 0.3, 0.0, -0.1, 0.6, 0.8, 0.0, 0.9, 0.4),
+        (1.0, 0.01, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.9, 0.4),
+        (-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.9, 0.4))] == [
+        ci.COLLISION_SLIDING, ci.COLLISION_STICKING, ci.COLLISION_NONE]
+
+
+def test_binary_pair_not_approaching_is_unchanged():
+    u1, w1, u2, w2 = np.array([1.0, 0, 0]), np.zeros(3), np.array([2.0, 0, 0]), np.zeros(3)
+    assert ci.hard_sphere_pair(u1, w1, 1e-4, u2, w2, 1e-4, np.array([1.0, 0, 0]), 0.9, 0.4) == ci.COLLISION_NONE
+    assert u1[0] == 1.0 and u2[0] == 2.0
+
+
+def test_head_on_equal_spheres_vs_textbook():
+    """Equal spheres, head-on, e: u₁′ = ((1−e)u₁ + (1+e)u₂)/2."""
+    e = 0.9
+    u1, u2 = np.array([3.0, 0, 0]), np.array([-1.0, 0, 0])
+    w = np.zeros(3)
+    ci.hard_sphere_pair(u1, w.copy(), 1e-4, u2, w.copy(), 1e-4, np.array([1.0, 0, 0]), e, 0.4)
+    assert u1[0] == pytest.approx(((1 - e) * 3 + (1 + e) * -1) / 2)
+    assert u2[0] == pytest.approx(((1 - e) * -1 + (1 + e) * 3) / 2)
+
+
+# ---------------------------------------------------------------------------------------------
+# the fictitious partner path (§4.1)
+# ---------------------------------------------------------------------------------------------
+
+OPTS = [ci.InterparticleOptions(), ci.InterparticleOptions(rotation=False),
+        ci.InterparticleOptions(restitution=1.0, friction=0.0)]
+
+
+@given(vel=vec, w=vec, mean_own=vec, mean_partner=vec, rms=st.tuples(*[st.floats(0, 3)] * 3),
+       wmean=vec, wrms=st.tuples(*[st.floats(0, 10)] * 3), d1=st.floats(1e-5, 1e-3), d2=st.floats(1e-5, 1e-3),
+       stokes=st.floats(0, 100), seed=st.integers(0, 2**40), opt=st.sampled_from(range(len(OPTS))))
+@settings(max_examples=300, deadline=None)
+def test_fictitious_partner_path_is_binary_collision_with_sampled_partner(vel, w, mean_own, mean_partner, rms, wmean,
+                                                                          wrms, d1, d2, stokes, seed, opt):
+    """The stochastic kernel = binary collision with the partner u₂ = ū₂ + R u′₁ + σ₂ sqrt(1−R²) ξ,
+    ω₂ = ω̄ + σ_ω ξ′; the pair (real + partner) conserves momentum, KE does not increase."""
+    kernel = ci.make_interparticle_collision(OPTS[opt])
+    rotation = OPTS[opt].rotation
+    vel = np.array(vel, float)
+    omega = np.array(w) * 1e3 / d1 * 1e-3 / 20  # |r ω| ≲ 1 m/s
+    mean_own, mean_partner, rms = map(np.asarray, (mean_own, mean_partner, rms))
+    wmean, wrms = np.array(wmean) * 50.0, np.array(wrms)
+    rng = cr.rng_state(seed, 2, 9, cr.STREAM_COLLISION)
+    rng_copy = rng.copy()
+    v1, w1, dv, partner = vel.copy(), omega.copy(), np.zeros(3), np.zeros(ci.PARTNER_SIZE)
+    status, f = kernel(v1, w1, d1, mean_own, d2, mean_partner, rms, wmean, wrms, 1e15, stokes, 10.0, rng, dv, partner)
+    # partner velocity from the model equation, with the same normals
+    R = math.exp(-0.55 * stokes**0.4)
+    x0, x1 = cr.next_normal_pair(rng_copy)
+    x2, _ = cr.next_normal_pair(rng_copy)
+    u2 = mean_partner + R * (vel - mean_own) + rms * math.sqrt(1 - R * R) * np.array([x0, x1, x2])
+    np.testing.assert_allclose(partner[:3], u2, rtol=1e-12, atol=1e-12)
+    g = np.linalg.norm(vel - u2)
+    assert f == pytest.approx(math.pi / 4 * (d1 + d2) ** 2 * g * 1e15, rel=1e-12)
+    if status == ci.COLLISION_NONE:
+        assert f * 10.0 < 50.0  # P = 1 − exp(−f Δt) ≈ 1 otherwise
+        np.testing.assert_array_equal(v1, vel)
+        return
+    n = partner[6:9]
+    assert n @ (vel - u2) >= 0.0 and np.linalg.norm(n) == pytest.approx(1.0)
+    w2 = partner[3:6]
+    if rotation and np.all(wrms == 0):
+        np.testing.assert_array_equal(w2, wmean)
+    a = [vel.copy(), omega.copy() if rotation else np.zeros(3), u2.copy(), w2.copy()]
+    ref = ci.hard_sphere_pair(a[0], a[1], d1, a[2], a[3], d2, n, OPTS[opt].restitution, OPTS[opt].friction)
+    assert ref == status
+    np.testing.assert_allclose(v1, a[0], rtol=1e-12, atol=1e-12)
+    if rotation:
+        np.testing.assert_allclose(w1, a[1], rtol=1e-12, atol=1e-9)
+    else:
+        np.testing.assert_array_equal(w1, omega)
+    np.testing.assert_allclose(dv, v1 - vel, rtol=0, atol=1e-12)
+    p0, _, ke0 = pair_invariants(vel, omega if rotation else np.zeros(3), d1, u2, w2, d2, n)
+    p1, _, ke1 = pair_invariants(v1, a[1], d1, a[2], a[3], d2, n)
+    np.testing.assert_allclose(p1, p0, rtol=0, atol=1e-12 * (mass(d1) + mass(d2)) * 100)
+    assert ke1 <= ke0 * (1 + 1e-12)
+
+
+@pytest.mark.parametrize("opt", range(len(OPTS)))
+def test_stochastic_kernel_vs_py_func(opt):
+    kernel = ci.make_interparticle_collision(OPTS[opt])
+    rs = np.random.default_rng(opt)
+    for k in range(10):
+        args = dict(d_p=1e-4, mean_own=np.array([10.0, 0, 0]), d_partner=2e-4, mean_partner=np.array([9.0, 0.1, 0]),
+                    rms_partner=np.array([0.5, 0.3, 0.3]), omega_mean=np.array([0, 0, -100.0]),
+                    omega_rms=np.array([50.0, 50.0, 50.0]), number_density=1e11, stokes=rs.uniform(0, 5),
+                    dt=1e-3)
+        vel = np.array([10.0, 0, 0]) + rs.normal(size=3)
+        om = rs.normal(size=3) * 1e3
+        out = []
+        for fn in (kernel, kernel.py_func):
+            v, w, dv, part = vel.copy(), om.copy(), np.zeros(3), np.zeros(ci.PARTNER_SIZE)
+            rng = cr.rng_state(4, 1, k, cr.STREAM_COLLISION)
+            res = fn(v, w, args["d_p"], args["mean_own"], args["d_partner"], args["mean_partner"],
+                     args["rms_partner"], args["omega_mean"], args["omega_rms"], args["number_density"],
+                     args["stokes"], args["dt"], rng, dv, part)
+            out.append((res, v, w, dv, part, rng))
+        (ra, *xa), (rb, *xb) = out
+        assert ra[0] == rb[0] and ra[1] == pytest.approx(rb[1], rel=1e-13)
+        for x, y in zip(xa, xb):
+            np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12)
+
+
+def test_empty_cell_or_zero_step_never_collides():
+    v, w, dv, part = np.ones(3), np.zeros(3), np.zeros(3), np.zeros(ci.PARTNER_SIZE)
+    rng = cr.rng_state(1, 0, 0, cr.STREAM_COLLISION)
+    z = np.zeros(3)
+    for n_p, dt in ((0.0, 1.0), (1e12, 0.0)):
+        assert ci.interparticle_collision(v, w, 1e-4, z, 1e-4, z, np.ones(3), z, z, n_p, 1.0, dt, rng, dv, part) == (
+            ci.COLLISION_NONE, 0.0)
+    assert rng[cr.RNG_DRAW] == 0
+
+
+# ---------------------------------------------------------------------------------------------
+# model functions and the impact-point sampling
+# ---------------------------------------------------------------------------------------------
+
+def test_correlation_function_vs_sommerfeld_2001():
+    for fn in (ci.sommerfeld_2001_correlation, ci.sommerfeld_2001_correlation.py_func):
+        assert fn(0.0) == 1.0
+        assert fn(1.0) == pytest.approx(math.exp(-0.55))
+        assert fn(10.0) == pytest.approx(math.exp(-0.55 * 10**0.4))
+    s = np.logspace(-6, 3, 50)
+    r = np.array([ci.sommerfeld_2001_correlation(x) for x in s])
+    assert np.all(np.diff(r) < 0) and r[0] > 0.99 and r[-1] < 2e-4  # R(1000) = 1.6e-4
+
+
+def test_frequency_probability_helpers_vs_py_func():
+    assert ci.kinetic_collision_frequency(1e-4, 2e-4, 1e10, 2.0) == pytest.approx(math.pi / 4 * 9e-8 * 2e10)
+    assert ci.kinetic_collision_frequency.py_func(1e-4, 2e-4, 1e10, 2.0) == ci.kinetic_collision_frequency(
+        1e-4, 2e-4, 1e10, 2.0)
+    for fdt in (1e-12, 1e-3, 0.5, 3.0, 50.0):
+        assert ci.collision_probability(fdt, 1.0) == pytest.approx(1 - math.exp(-fdt), rel=1e-12)
+        assert ci.collision_probability.py_func(fdt, 1.0) == ci.collision_probability(fdt, 1.0)
+    # <|g|> = 4σ/√π for two independent Maxwellian classes of rms σ (PHYSICS.md §7)
+    s = 0.7
+    assert ci.mean_collision_frequency(1e-4, 1e-4, 1e10, s, s, 0.0) == pytest.approx(
+        math.pi / 4 * 4e-8 * 1e10 * 4 * s / math.sqrt(math.pi), rel=1e-12)
+    assert ci.mean_collision_frequency.py_func(1e-4, 1e-4, 1e10, s, s, 0.3) == pytest.approx(
+        ci.mean_collision_frequency(1e-4, 1e-4, 1e10, s, s, 0.3), rel=1e-14)
+
+
+@njit
+def _impact_normals(gx, gy, gz, n, seed):
+    out = np.empty((n, 3))
+    rng = cr.rng_state(seed, 0, 0, cr.STREAM_COLLISION)
+    for i in range(n):
+        u1, u2 = cr.next_uniform_pair(rng)
+        out[i, 0], out[i, 1], out[i, 2] = ci.impact_normal(gx, gy, gz, u1, u2)
+    return out
+
+
+@pytest.mark.parametrize("g", [(3.0, 0.0, 0.0), (0.0, 0.0, -2.0), (1.0, -2.0, 0.5), (1e-3, 1e-3, 1e-3)])
+def test_impact_point_uniform_on_full_disc(g):
+    """L = sin Φ has pdf 2L on [0, 1] and ψ is uniform on [0, 2π) about ĝ, in any global
+    orientation (no quadrant bias, PHYSICS.md §4.1 step 5)."""
+    n = 200_000
+    g = np.array(g)
+    gh = g / np.linalg.norm(g)
+    nn = _impact_normals(*g, n, 5)
+    np.testing.assert_allclose(np.linalg.norm(nn, axis=1), 1.0, atol=1e-12)
+    cos_phi = nn @ gh
+    assert cos_phi.min() >= 0.0
+    L = np.sqrt(np.clip(1 - cos_phi**2, 0, 1))
+    assert stats.kstest(L, lambda x: np.clip(x, 0, 1) ** 2).pvalue > 1e-3
+    # azimuth about ĝ in a basis built here, independently of the kernel's
+    a = np.array([0.0, 1.0, 0.0]) if abs(gh[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    b1 = np.cross(gh, a)
+    b1 /= np.linalg.norm(b1)
+    b2 = np.cross(gh, b1)
+    psi = np.mod(np.arctan2(nn @ b2, nn @ b1), 2 * np.pi)
+    assert stats.kstest(psi, stats.uniform(0, 2 * np.pi).cdf).pvalue > 1e-3
+    lateral = nn - np.outer(cos_phi, gh)
+    assert np.linalg.norm(lateral.mean(axis=0)) < 5 * math.sqrt(0.5 / n)
+    # compiled vs py_func
+    assert ci.impact_normal.py_func(*g, 0.3, 0.7) == pytest.approx(ci.impact_normal(*g, 0.3, 0.7), abs=1e-15)
+
+
+def test_size_class_sampling_vs_weights():
+    w = np.array([0.1, 0.0, 2.0, 0.5, 1.4])
+    cum = np.cumsum(w)
+    rng = cr.rng_state(3, 0, 0, cr.STREAM_COLLISION)
+    k = np.array([ci.sample_size_class(cum, rng) for _ in range(40_000)])
+    counts = np.bincount(k, minlength=len(w))
+    assert counts[1] == 0
+    nz = w > 0
+    assert stats.chisquare(counts[nz], w[nz] / w.sum() * len(k)).pvalue > 1e-3
+    rng2 = cr.rng_state(3, 0, 0, cr.STREAM_COLLISION)
+    assert [ci.sample_size_class.py_func(cum, rng2) for _ in range(50)] == list(k[:50])
+
+
+# ---------------------------------------------------------------------------------------------
+# collision frequency vs kinetic theory (§4.1, §9.3)
+# ---------------------------------------------------------------------------------------------
+
+D = 100e-6  # m
+SIGMA = 0.5  # m/s, rms of each velocity component
+N_P = 1e10  # 1/m3
+MEAN = np.array([10.0, -0.2, 0.1])
+
+
+@lru_cache(maxsize=None)
+def _make_frequency_experiment():
+    kernel = ci.make_interparticle_collision(ci.InterparticleOptions())
+
+    @njit
+    def run(stokes, dt, n, seed):
+        """n particles with Maxwellian velocities (mean MEAN, rms SIGMA) in a uniform cell whose
+        statistics are the same; one kernel call each; returns the number of collisions."""
+        mean = np.array([10.0, -0.2, 0.1])
+        rms = np.array([SIGMA, SIGMA, SIGMA])
+        zero = np.zeros(3)
+        vel = np.empty(3)
+        omega = np.zeros(3)
+        dv = np.zeros(3)
+        partner = np.zeros(ci.PARTNER_SIZE)
+        src = cr.rng_state(seed, 0, 0, cr.STREAM_INJECTION)
+        rng = cr.rng_state(seed, 0, 0, cr.STREAM_COLLISION)
+        hits = 0
+        for i in range(n):
+            a, b = cr.next_normal_pair(src)
+            c, _ = cr.next_normal_pair(src)
+            vel[0] = mean[0] + SIGMA * a
+            vel[1] = mean[1] + SIGMA * b
+            vel[2] = mean[2] + SIGMA * c
+            omega[:] = 0.0
+            rng[cr.RNG_PARCEL] = i
+            rng[cr.RNG_DRAW] = 0
+            status, f = kernel(vel, omega, D, mean, D, mean, rms, zero, zero, N_P, stokes, dt, rng, dv, partner)
+            if status != ci.COLLISION_NONE:
+                hits += 1
+        return hits
+
+    return run
+
+
+def _maxwell_expectation(fun, scale):
+    """E[fun(|g|)] for |g| Maxwell-distributed with per-component std `scale` (scipy)."""
+    dist = stats.maxwell(scale=scale)
+    return integrate.quad(lambda x: fun(x) * dist.pdf(x), 0, 12 * scale, limit=200)[0]
+
+
+def test_collision_frequency_vs_kinetic_theory_uncorrelated():
+    """Uncorrelated Maxwellian partners (St → ∞): measured frequency = (π/4)(2D)² n ⟨|g|⟩ within 2 %,
+    ⟨|g|⟩ the mean of a Maxwell distribution with per-component std σ√2 (scipy); ≥ 5·10^4 events."""
+    f_kin = math.pi / 4 * (2 * D) ** 2 * N_P * stats.maxwell(scale=SIGMA * math.sqrt(2)).mean()
+    # f Δt ≈ 0.004: the one-event-per-step bias (≈ f Δt/2) is 0.2 %; 5·10^4 events: 0.45 % standard error
+    dt = 0.004 / f_kin
+    n = 12_500_000
+    hits = _make_frequency_experiment()(1e8, dt, n, 1)
+    assert hits >= 10_000
+    f_measured = hits / (n * dt)
+    assert f_measured == pytest.approx(f_kin, rel=0.02)
+    print(f"\ncollision frequency: measured {f_measured:.5g} 1/s, kinetic theory {f_kin:.5g} 1/s, "
+          f"ratio {f_measured / f_kin:.4f}, events {hits}")
+
+
+def test_collision_probability_not_clipped_at_large_steps():
+    """f Δt ≈ 1: the event fraction equals the Poisson expectation E[1 − exp(−f Δt)] (quadrature),
+    not E[min(f Δt, 1)] (what clipping a linear P would give)."""
+    f_kin = math.pi / 4 * (2 * D) ** 2 * N_P * stats.maxwell(scale=SIGMA * math.sqrt(2)).mean()
+    dt = 1.0 / f_kin
+    c = math.pi / 4 * (2 * D) ** 2 * N_P * dt
+    n = 300_000
+    hits = _make_frequency_experiment()(1e8, dt, n, 2)
+    expected = _maxwell_expectation(lambda g: -np.expm1(-c * g), SIGMA * math.sqrt(2))
+    clipped = _maxwell_expectation(lambda g: min(c * g, 1.0), SIGMA * math.sqrt(2))
+    frac = hits / n
+    assert frac == pytest.approx(expected, rel=0.01)
+    assert abs(clipped - expected) > 0.1
+
+
+def test_collision_frequency_falls_to_zero_with_full_correlation():
+    """Correlated partner: g has per-component variance 2σ²(1 − R) (derived here), so the event
+    fraction is E[1 − exp(−c |g|)] over a Maxwell distribution of scale σ sqrt(2(1 − R)); it falls
+    toward zero as St → 0 (R → 1)."""
+    f_kin = math.pi / 4 * (2 * D) ** 2 * N_P * stats.maxwell(scale=SIGMA * math.sqrt(2)).mean()
+    dt = 0.05 / f_kin
+    c = math.pi / 4 * (2 * D) ** 2 * N_P * dt
+    n = 1_000_000
+    run = _make_frequency_experiment()
+    ratios = []
+    for stokes in (100.0, 1.0, 1e-2, 1e-4, 1e-8):
+        R = math.exp(-0.55 * stokes**0.4)
+        hits = run(stokes, dt, n, 3)
+        expected = _maxwell_expectation(lambda g: -np.expm1(-c * g), SIGMA * math.sqrt(2 * (1 - R)))
+        assert hits / n == pytest.approx(expected, rel=0.03, abs=3 * math.sqrt(expected / n))
+        ratios.append(hits / (n * dt) / f_kin)
+    assert all(a > b for a, b in zip(ratios, ratios[1:]))
+    assert ratios[0] > 0.95 and ratios[-1] < 0.03
