@@ -448,9 +448,12 @@ def _make_bottom_tracker(options):
     kernel = cw.make_wall_collision(options)
 
     @njit
-    def track(v0x, w0z, dgamma, tau_p, dt, n_steps, r_p, R, seed, vx_hist, status_hist, height_hist):
-        """Gravity (−y) and Stokes drag in still air (exact exponential step), wall kernel on contact."""
-        pos = np.array([0.0, -(R - r_p) * (1 - 1e-12), 0.0])
+    def track(v0x, w0z, dgamma, tau_p, dt, n_steps, r_p, R, seed, vx_hist, status_hist, height_hist, theta0=0.0,
+              z_hist=np.empty(0)):
+        """Gravity (−y) and Stokes drag in still air (exact exponential step; tau_p = 0: no drag),
+        wall kernel on contact. Start at rest on the wall, theta0 [rad] from the bottom towards +z."""
+        rc = (R - r_p) * (1 - 1e-12)
+        pos = np.array([0.0, -rc * math.cos(theta0), rc * math.sin(theta0)])
         vel = np.array([v0x, 0.0, 0.0])
         omega = np.array([0.0, 0.0, w0z])
         uf = np.zeros(3)
@@ -476,6 +479,8 @@ def _make_bottom_tracker(options):
             vx_hist[k] = vel[0]
             status_hist[k] = status
             height_hist[k] = (R - r_p) - math.sqrt(pos[1] ** 2 + pos[2] ** 2)
+            if z_hist.shape[0] > k:
+                z_hist[k] = pos[2]
         return calls, vel, omega, pos
 
     return track
@@ -516,6 +521,35 @@ def test_sliding_sphere_decelerates_by_coulomb_friction_then_rolls_at_five_seven
     assert vel[0] == pytest.approx(5 / 7 * v0, rel=2e-3)
     assert omega[2] == pytest.approx(-vel[0] / r_p, rel=1e-6)
     assert h.max() <= 2 * G * dt * dt
+
+
+def test_sphere_rolling_in_pipe_bottom_has_rolling_pendulum_period():
+    """Released at rest 5° up the curved wall, no drag: it rolls to and fro in contact (no bounce)
+    with the period of a sphere rolling without slip in a cylinder, 2π sqrt(7 (R − r_p)/(5 g))
+    (a sliding, frictionless sphere would give 2π sqrt((R − r_p)/g), 15 % shorter)."""
+    R, r_p, dt, n = 0.015, 1e-4, 1e-4, 20000
+    vx, status, h, z = np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n)
+    _make_bottom_tracker(cw.WallOptions())(0.0, 0.0, 0.0, 0.0, dt, n, r_p, R, 1, vx, status, h, 5 * DEG, z)
+    assert np.all(status == cw.WALL_ROLLING)
+    t = dt * (np.arange(n) + 1)
+    up = np.where((z[:-1] < 0) & (z[1:] >= 0))[0]
+    assert len(up) >= 6
+    period = np.diff(t[up]).mean()
+    assert period == pytest.approx(2 * math.pi * math.sqrt(7 * (R - r_p) / (5 * G)), rel=3e-3)
+    # amplitude decays only slowly (impulse contact dissipates O(Δt) per step)
+    assert abs(z[-3000:]).max() > 0.8 * abs(z[:3000]).max()
+    assert h.min() >= 0.0 and h.max() <= 2 * G * dt * dt
+
+
+@pytest.mark.parametrize("dgamma_deg", [0.0, 10.0])
+def test_particle_released_on_the_wall_comes_to_rest_at_the_bottom_with_drag(dgamma_deg):
+    R, r_p, dt, n = 0.015, 1e-4, 1e-4, 20000
+    vx, status, h, z = np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n)
+    _, vel, _, pos = _make_bottom_tracker(cw.WallOptions())(0.0, 0.0, dgamma_deg * DEG, 0.05, dt, n, r_p, R, 1, vx,
+                                                             status, h, 10 * DEG, z)
+    assert not np.any(status == cw.WALL_REBOUND)
+    assert np.linalg.norm(vel) < 1e-3 and abs(pos[2]) < 1e-5
+    assert h.min() >= 0.0
 
 
 def test_no_micro_bounces_on_rough_wall_for_slow_sliding_particle():
