@@ -42,6 +42,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .conf import JIT_FLAGS, KERNEL_FLAGS
+
 # Streams (counter1 high bits): one per physical process, so switching a
 # process on or off does not shift the noise of the others.
 STREAM_INJECTION = 0
@@ -72,7 +74,7 @@ _TWO_M53 = 1.0 / 9007199254740992.0  # 2**-53
 _TWO_PI = 2.0 * math.pi
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def philox4x32(c0, c1, c2, c3, k0, k1):
     """Philox-4x32-10 block: four 32-bit counter words and two key words → four 32-bit words.
 
@@ -94,7 +96,7 @@ def philox4x32(c0, c1, c2, c3, k0, k1):
     return c0, c1, c2, c3
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def random_block(seed, pass_, parcel, stream, draw):
     """128 random bits for one key, as two 64-bit words ``(a, b)`` (``np.uint64``).
 
@@ -112,27 +114,27 @@ def random_block(seed, pass_, parcel, stream, draw):
     return (np.uint64(o0) << _S32) | np.uint64(o1), (np.uint64(o2) << _S32) | np.uint64(o3)
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _bits_to_unit(a):
     """Top 53 bits of a 64-bit word → double in [0, 1)."""
     return np.float64(a >> _S11) * _TWO_M53
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def uniform(seed, pass_, parcel, stream, draw):
     """Uniform double in [0, 1) (53 random bits) for the key (seed, pass, parcel, stream, draw)."""
     a, _ = random_block(seed, pass_, parcel, stream, draw)
     return _bits_to_unit(np.uint64(a))
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def uniform_pair(seed, pass_, parcel, stream, draw):
     """Two independent uniforms in [0, 1) from one key (the two 64-bit halves of the block)."""
     a, b = random_block(seed, pass_, parcel, stream, draw)
     return _bits_to_unit(np.uint64(a)), _bits_to_unit(np.uint64(b))
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def normal_pair(seed, pass_, parcel, stream, draw):
     """Two independent standard normals from one key (Box & Muller 1958).
 
@@ -147,14 +149,14 @@ def normal_pair(seed, pass_, parcel, stream, draw):
     return rad * math.cos(phi), rad * math.sin(phi)
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def normal(seed, pass_, parcel, stream, draw):
     """One standard normal for the key (the first of ``normal_pair``)."""
     z1, _ = normal_pair(seed, pass_, parcel, stream, draw)
     return z1
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def rng_state(seed, pass_, parcel, stream, draw=0):
     """New state array int64[5] = (seed, pass, parcel, stream, next draw) for the ``next_*`` functions."""
     s = np.empty(RNG_STATE_SIZE, dtype=np.int64)
@@ -166,7 +168,7 @@ def rng_state(seed, pass_, parcel, stream, draw=0):
     return s
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def next_uniform(rng):
     """Uniform in [0, 1) from state ``rng`` (int64[5]); advances the draw counter ``rng[4]`` by one."""
     d = rng[RNG_DRAW]
@@ -174,7 +176,7 @@ def next_uniform(rng):
     return uniform(rng[RNG_SEED], rng[RNG_PASS], rng[RNG_PARCEL], rng[RNG_STREAM], d)
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def next_uniform_pair(rng):
     """Two independent uniforms in [0, 1) from state ``rng``; advances the draw counter by one."""
     d = rng[RNG_DRAW]
@@ -182,7 +184,7 @@ def next_uniform_pair(rng):
     return uniform_pair(rng[RNG_SEED], rng[RNG_PASS], rng[RNG_PARCEL], rng[RNG_STREAM], d)
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def next_normal(rng):
     """Standard normal from state ``rng``; advances the draw counter by one."""
     d = rng[RNG_DRAW]
@@ -190,7 +192,7 @@ def next_normal(rng):
     return normal(rng[RNG_SEED], rng[RNG_PASS], rng[RNG_PARCEL], rng[RNG_STREAM], d)
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def next_normal_pair(rng):
     """Two independent standard normals from state ``rng``; advances the draw counter by one."""
     d = rng[RNG_DRAW]
@@ -198,14 +200,14 @@ def next_normal_pair(rng):
     return normal_pair(rng[RNG_SEED], rng[RNG_PASS], rng[RNG_PARCEL], rng[RNG_STREAM], d)
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def fill_uniform(seed, pass_, parcel, stream, draw0, out):
     """Fill ``out`` with uniforms for draws draw0, draw0+1, … (vectorised helper for tests and injection)."""
     for i in range(out.shape[0]):
         out[i] = uniform(seed, pass_, parcel, stream, draw0 + i)
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def fill_normal(seed, pass_, parcel, stream, draw0, out):
     """Fill ``out`` with standard normals for draws draw0, draw0+1, … (one draw per value)."""
     for i in range(out.shape[0]):

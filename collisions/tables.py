@@ -19,6 +19,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
+from .conf import JIT_FLAGS
 from .random import STREAM_WALL, rng_state
 from .wall import WallOptions, make_wall_collision
 
@@ -38,7 +39,7 @@ def make_rebound_sampler(options=WallOptions()):
     """
     kernel = make_wall_collision(options)
 
-    @njit(cache=True)
+    @njit(**JIT_FLAGS)
     def rebound_angles(alpha_deg, dgamma_deg, n, seed, out, speed_ratio):
         r_p = 1e-4
         pipe_radius = 1.0

@@ -42,6 +42,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
+from .conf import JIT_FLAGS, KERNEL_FLAGS
 from .random import next_normal, next_uniform
 
 # Wall-kernel status codes (returned; the tracker counts them).
@@ -61,7 +62,7 @@ _PLACE_MARGIN = 1e-12
 _MAX_TRIES = 10000
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def linear_with_floor(alpha_deg, value0, slope, floor):
     """max(floor, value0 − slope·α): the form of the Sommerfeld–Huber wall coefficients.
 
@@ -70,7 +71,7 @@ def linear_with_floor(alpha_deg, value0, slope, floor):
     return max(floor, value0 - slope * alpha_deg)
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def sommerfeld_huber_1999_restitution(alpha_deg):
     """Wall restitution e_w = max(0.8, 1 − 0.01 α) [-], α [deg].
 
@@ -80,7 +81,7 @@ def sommerfeld_huber_1999_restitution(alpha_deg):
     return max(0.8, 1.0 - 0.01 * alpha_deg)
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def sommerfeld_huber_1999_friction(alpha_deg):
     """Wall (kinetic) friction μ_w = max(0.1, 0.4 − 0.015 α) [-], α [deg].
 
@@ -89,7 +90,7 @@ def sommerfeld_huber_1999_friction(alpha_deg):
     return max(0.1, 0.4 - 0.015 * alpha_deg)
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def minimum_bounce_speed(diameter, gravity=GRAVITY):
     """Wall-normal speed gained falling one particle diameter, sqrt(2 g D_p) [m/s].
 
@@ -99,7 +100,7 @@ def minimum_bounce_speed(diameter, gravity=GRAVITY):
     return math.sqrt(2.0 * gravity * diameter)
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def roughness_angle_effective_pdf(alpha, dgamma, rng):
     """Roughness angle γ [rad] with the shadow-effect pdf (Sommerfeld 2003; Sommerfeld & Kussin 2004).
 
@@ -136,7 +137,7 @@ def roughness_angle_effective_pdf(alpha, dgamma, rng):
     return 0.0
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def roughness_angle_simple(alpha, dgamma, rng):
     """Roughness angle γ ~ N(0, Δγ) [rad], redrawn while α + γ ≤ 0 (Sommerfeld & Huber 1999).
 
@@ -152,7 +153,7 @@ def roughness_angle_simple(alpha, dgamma, rng):
     return 0.0
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def hard_sphere_wall_rebound(vel, omega, nx, ny, nz, r_p, e, mu, rotation):
     """Hard-sphere impact of a sphere on a plane wall with unit normal n (into the fluid).
 
@@ -212,7 +213,7 @@ def hard_sphere_wall_rebound(vel, omega, nx, ny, nz, r_p, e, mu, rotation):
     return stick
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def time_to_wall(y, z, vy, vz, r_contact):
     """Time [s] until a centre at (y, z) [m] moving with (v_y, v_z) [m/s] reaches r = r_contact [m].
 
@@ -233,7 +234,7 @@ def time_to_wall(y, z, vy, vz, r_contact):
     return (-b + sq) / (2.0 * a)
 
 
-@njit(cache=True)
+@njit(**KERNEL_FLAGS)
 def place_inside(pos, r_p, pipe_radius):
     """Move the centre radially to r ≤ (R − r_p)(1 − 1e-12) if it is farther out (in place).
 
@@ -326,7 +327,7 @@ def make_wall_collision(options=WallOptions()):
     rotation = options.rotation
     max_impacts = int(options.max_impacts)
 
-    @njit(cache=True)
+    @njit(**KERNEL_FLAGS)
     def wall_collision(pos, vel, omega, u_fluid, dv, r_p, pipe_radius, dgamma, v_min, rng):
         y = pos[1]
         z = pos[2]
