@@ -115,6 +115,18 @@ class Section:
         self._sum_N = sp.csr_matrix((np.ones(self.nf), (self.N, f)), shape=(n, self.nf))
         self.div = (self._sum_P - self._sum_N).tocsr()  # sum of outward face quantities
         self.fsum = (self._sum_P + self._sum_N).tocsr()
+        # linear operators for the coupled cross-flow system
+        inv_d = 1.0 / self.delta
+        self.Dn = sp.csr_matrix(
+            (np.concatenate([-inv_d, inv_d]), (np.concatenate([f, f]), np.concatenate([self.P, self.N]))),
+            shape=(self.nf, n))
+        self.I = sp.csr_matrix(
+            (np.concatenate([1.0 - self.w, self.w]), (np.concatenate([f, f]), np.concatenate([self.P, self.N]))),
+            shape=(self.nf, n))
+        self.Rz = (sp.diags(self.Tinv[:, 0]) @ self.fsum @ sp.diags(self.S * self.nz)
+                   + sp.diags(self.Tinv[:, 1]) @ self.fsum @ sp.diags(self.S * self.ny)).tocsr()
+        self.Ry = (sp.diags(self.Tinv[:, 1]) @ self.fsum @ sp.diags(self.S * self.nz)
+                   + sp.diags(self.Tinv[:, 2]) @ self.fsum @ sp.diags(self.S * self.ny)).tocsr()
 
     # ------------------------------------------------------------------ matrices
     def matrix(self, diag, a_PN, a_NP):
@@ -150,6 +162,11 @@ class Section:
     def interp(self, phi):
         """Linear interpolation of a cell field to the interior faces."""
         return (1.0 - self.w) * phi[self.P] + self.w * phi[self.N]
+
+    def interp_mid(self, phi):
+        """Value at the midpoint of the line joining the two cell centres (body forces: with it,
+        (phi_N - phi_P)/delta equals the interpolated force for any quadratic potential)."""
+        return 0.5 * (phi[self.P] + phi[self.N])
 
     def normal_difference(self, phi):
         """(phi_N - phi_P)/delta at interior faces [units of phi per m]."""

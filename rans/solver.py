@@ -33,6 +33,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
@@ -155,7 +156,8 @@ _VARS = ("ux", "uy", "uz", "k", "eps")
 class _StationSolver:
     """Outer iteration of the cross-section equations at one axial station."""
 
-    def __init__(self, mesh, gas, bulk_velocity, momentum_scheme="hybrid", pressure_relaxation=1.0):
+    def __init__(self, mesh, gas, bulk_velocity, momentum_scheme="hybrid", pressure_relaxation=1.0,
+                 momentum_relaxation=1.0):
         self.mesh = mesh
         self.sec = mesh.geometry()
         self.rho = gas.density
@@ -164,9 +166,11 @@ class _StationSolver:
         self.area_total = self.sec.area.sum()
         self.scheme = momentum_scheme
         self.alpha_p = pressure_relaxation
+        self.alpha_u = momentum_relaxation
         self.station = 0
         self.x = 0.0
         self.periodic = mesh.mode == "periodic"
+        self.coupled = self.periodic  # the march converges fast with SIMPLEC (strong axial term)
 
     # -------------------------------------------------------------------- checks
     def check(self, name, values, positive=False):
@@ -219,10 +223,14 @@ class _StationSolver:
         diag, aPN, aNP = sec.transport(st.flux, mu_f, self.scheme)
         diag_m = diag + c0 * ax
         diag_m[wall] += cwL
+        # implicit under-relaxation (periodic mode; 1 in the march)
+        au = self.alpha_u
+        relax_u = (1.0 - au) / au * diag_m
+        diag_m = diag_m / au
         lu = splu(sec.matrix(diag_m, aPN, aNP))
 
         # axial velocity, mass flow fixed through the mean pressure gradient G = -dp/dx
-        b = ax * hist["ux"] + src["mx"] * A
+        b = ax * hist["ux"] + src["mx"] * A + relax_u * st.ux
         u1 = lu.solve(b)
         u2 = lu.solve(A.copy())
         mdot_target = self.Ub * self.area_total
@@ -230,42 +238,22 @@ class _StationSolver:
         ux_new = u1 + G * u2
         self.check("u_x", ux_new)
 
-        # ---------------- cross-section momentum (balanced force at the faces)
-        fz_f = sec.interp(src["fz"])
-        fy_f = sec.interp(src["fy"])
-        g = -sec.normal_difference(st.p) + fz_f * sec.nz + fy_f * sec.ny
-        Rz, Ry = sec.reconstruct(g, np.zeros(wall.size))
-        # wall: shear acts on the tangential velocity only; implicit -cw u, explicit +cw (u.e_r) e_r
+        # ---------------- cross-section momentum and continuity (balanced force at the faces)
+        fn = sec.interp_mid(src["fz"]) * sec.nz + sec.interp_mid(src["fy"]) * sec.ny
         un = st.uz[wall] * sec.wall_nz + st.uy[wall] * sec.wall_ny
-        bz = ax * hist["uz"] + A * Rz
-        by = ax * hist["uy"] + A * Ry
+        bz = ax * hist["uz"] + relax_u * st.uz
+        by = ax * hist["uy"] + relax_u * st.uy
+        # wall: shear acts on the tangential velocity only; implicit -cw u, explicit +cw (u.e_r) e_r
         bz[wall] += cwL * un * sec.wall_nz
         by[wall] += cwL * un * sec.wall_ny
-        uz = lu.solve(bz)
-        uy = lu.solve(by)
-
-        # ---------------- SIMPLEC pressure correction with momentum interpolation
-        offsum = sec._sum_P @ np.abs(aPN) + sec._sum_N @ np.abs(aNP)
-        red = diag_m - offsum
-        red = np.where(red > 1e-3 * diag_m, red, diag_m)
-        dP = A / red
-        d_f = sec.interp(dP)
-        Uf = (sec.interp(uz - dP * Rz) * sec.nz + sec.interp(uy - dP * Ry) * sec.ny) + d_f * g
-        flux = rho * Uf * sec.S
-        # continuity: cross-section outflow + axial outflow d(u_x)/dx; the periodic mode is
-        # fully developed (d/dx = 0), so its pseudo-march does not feed continuity
-        axial_out = 0.0 if self.periodic else rho * A * (c0 * ux_new - hist["ux"]) / dx
-        imbalance = sec.div @ flux + axial_out
-        coef = rho * d_f * sec.S / sec.delta
-        diag_p = sec.fsum @ coef
-        diag_p[sec.wall[0]] += diag_p.max() * 1e3  # pin the level of p' (pure Neumann problem)
-        pc = splu(sec.matrix(diag_p, -coef, -coef)).solve(-imbalance)
-        flux = flux + coef * (pc[sec.P] - pc[sec.N])
-        cz, cy = sec.reconstruct(-sec.normal_difference(pc), np.zeros(wall.size))
-        uz = uz + dP * cz
-        uy = uy + dP * cy
-        p = st.p + self.alpha_p * pc
-        p -= (A @ p) / self.area_total
+        axial_part = None if self.periodic else rho * A * (c0 * ux_new - hist["ux"]) / dx
+        if self.coupled:
+            # momentum-interpolation weight without the pseudo-march term, so that the converged
+            # periodic solution does not depend on the pseudo step
+            d_rc = A / (diag + np.bincount(wall, cwL, minlength=A.size))
+            uz, uy, p, flux = self._cross_flow_coupled(st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part, d_rc)
+        else:
+            uz, uy, p, flux = self._cross_flow_simplec(st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part)
         self.check("u_y", uy)
         self.check("u_z", uz)
 
@@ -332,6 +320,71 @@ class _StationSolver:
         return ch
 
 
+    # -------------------------------------------------------------------- cross-flow solvers
+    def _cross_flow_simplec(self, st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part):
+        """One SIMPLEC step: momentum predictor, momentum-interpolated fluxes, pressure correction."""
+        sec, rho, A = self.sec, self.rho, self.sec.area
+        nwall = sec.wall.size
+        g = -sec.normal_difference(st.p) + fn
+        Rz, Ry = sec.reconstruct(g, np.zeros(nwall))
+        uz = lu.solve(bz + A * Rz)
+        uy = lu.solve(by + A * Ry)
+        offsum = sec._sum_P @ np.abs(aPN) + sec._sum_N @ np.abs(aNP)
+        red = diag_m - offsum
+        red = np.where(red > 1e-3 * diag_m, red, diag_m)
+        dP = A / red
+        d_f = sec.interp(dP)
+        Uf = (sec.interp(uz - dP * Rz) * sec.nz + sec.interp(uy - dP * Ry) * sec.ny) + d_f * g
+        flux = rho * Uf * sec.S
+        imbalance = sec.div @ flux
+        if axial_part is not None:
+            imbalance = imbalance + axial_part
+        coef = rho * d_f * sec.S / sec.delta
+        diag_p = sec.fsum @ coef
+        diag_p[sec.wall[0]] += diag_p.max() * 1e3  # pin the level of p' (pure Neumann problem)
+        pc = splu(sec.matrix(diag_p, -coef, -coef)).solve(-imbalance)
+        flux = flux + coef * (pc[sec.P] - pc[sec.N])
+        cz, cy = sec.reconstruct(-sec.normal_difference(pc), np.zeros(nwall))
+        uz = uz + dP * cz
+        uy = uy + dP * cy
+        p = st.p + self.alpha_p * pc
+        p -= (A @ p) / self.area_total
+        return uz, uy, p, flux
+
+    def _cross_flow_coupled(self, st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part, d):
+        """Cross-flow momentum and continuity solved together (direct LU of the 3n system).
+
+        Momentum:   M u_z - A R_z(g) = b_z,  M u_y - A R_y(g) = b_y,   g = -(p_N - p_P)/delta + f.n
+        Continuity: sum_f rho S [ interp(u - d R(g)) . n + d_f g ] = -rho A d(u_x)/dx,  d = A/a_P
+        (a_P of the steady operator, without the pseudo-march term).
+        """
+        sec, rho, A = self.sec, self.rho, self.sec.area
+        M = sec.matrix(diag_m, aPN, aNP)
+        d_f = sec.interp(d)
+        Dg = sp.diags  # shorthand
+        Q = (-Dg(sec.nz) @ sec.I @ Dg(d) @ sec.Rz - Dg(sec.ny) @ sec.I @ Dg(d) @ sec.Ry + Dg(d_f))
+        K = rho * sec.div @ Dg(sec.S)
+        Gz = Dg(A) @ sec.Rz @ sec.Dn  # -A R_z(-Dn p) = +A R_z Dn p
+        Gy = Dg(A) @ sec.Ry @ sec.Dn
+        Cz = K @ Dg(sec.nz) @ sec.I
+        Cy = K @ Dg(sec.ny) @ sec.I
+        Cp = -(K @ Q @ sec.Dn).tolil()
+        Cp[sec.wall[0], sec.wall[0]] += abs(Cp.diagonal()).max() * 1e3  # pin the pressure level
+        rz = bz + A * (sec.Rz @ fn)
+        ry = by + A * (sec.Ry @ fn)
+        rc = -(K @ (Q @ fn))
+        if axial_part is not None:
+            rc = rc - axial_part
+        big = sp.bmat([[M, None, Gz], [None, M, Gy], [Cz, Cy, Cp.tocsr()]], format="csc")
+        sol = splu(big).solve(np.concatenate([rz, ry, rc]))
+        n = sec.n
+        uz, uy, p = sol[:n], sol[n:2 * n], sol[2 * n:]
+        p = p - (A @ p) / self.area_total
+        g = -sec.Dn @ p + fn
+        flux = rho * sec.S * (sec.nz * (sec.I @ uz) + sec.ny * (sec.I @ uy) + Q @ g)
+        return uz, uy, p, flux
+
+
 def _source_slices(sources, i, n):
     if sources is None:
         z = np.zeros(n)
@@ -378,6 +431,7 @@ def solve(
     momentum_scheme="hybrid",
     laminar=False,
     turbulence_relaxation=1.0,
+    momentum_relaxation=1.0,
     progress=False,
 ):
     """Solve the steady gas flow on ``mesh``; returns a :class:`GasField`.
@@ -390,7 +444,8 @@ def solve(
     station_tol (developing; default tol): same, per station; station_iterations: (min, max)
     outer iterations per station.  pseudo_step [m]: pseudo axial step of the periodic mode
     (default 4 D).  initial: a :class:`GasField` to start from (periodic mode).
-    turbulence_relaxation: implicit under-relaxation of k and epsilon in the periodic mode.
+    turbulence_relaxation, momentum_relaxation: implicit under-relaxation of k and epsilon,
+    and of the momentum equations, in the periodic mode (the march needs none).
     laminar: solve laminar flow (mu_t = 0, no k-epsilon; for verification).
     momentum_scheme: "hybrid" (default), "upwind" or "central" cross-section convection.
 
@@ -404,7 +459,8 @@ def solve(
         inlet_epsilon = ke.inlet_epsilon(inlet_k, mesh.diameter)
     if sources is not None:
         _check_sources(mesh, sources)
-    solver = _StationSolver(mesh, gas, bulk_velocity, momentum_scheme)
+    solver = _StationSolver(mesh, gas, bulk_velocity, momentum_scheme,
+                            momentum_relaxation=momentum_relaxation if mesh.mode == "periodic" else 1.0)
     sec = mesh.geometry()
     n = sec.n
     nx = mesh.nx
