@@ -84,7 +84,7 @@ def rebound_angle_table(impact_angles_deg=IMPACT_ANGLES_DEG, roughness_std_deg=R
     return mean, sem
 
 
-def coefficient_angle_sensitivity(impact_angles_deg=IMPACT_ANGLES_DEG, dgamma_deg=5.0, samples=20000, seed=1):
+def impact_angle_sensitivity(impact_angles_deg=IMPACT_ANGLES_DEG, dgamma_deg=5.0, samples=20000, seed=1):
     """Sensitivity to evaluating e_w, μ_w at the effective (α + γ₁) or the nominal (α) angle.
 
     PHYSICS.md §3.1 / §12.1. Returns {option: (mean rebound angle [deg], mean |v′|/|v| [-])},
@@ -94,7 +94,7 @@ def coefficient_angle_sensitivity(impact_angles_deg=IMPACT_ANGLES_DEG, dgamma_de
     out = np.empty(samples)
     ratio = np.empty(samples)
     for angle in ("effective", "nominal"):
-        sampler = make_rebound_sampler(WallOptions(coefficient_angle=angle))
+        sampler = make_rebound_sampler(WallOptions(impact_angle=angle))
         beta = np.empty(len(impact_angles_deg))
         speed = np.empty(len(impact_angles_deg))
         for i, a in enumerate(impact_angles_deg):
@@ -124,7 +124,7 @@ def main(argv=None):
     print(f"Rough-wall rebound statistics (default WallOptions; non-rotating sphere; "
           f"{args.samples} impacts per entry; ± standard error)")
     print(format_table(IMPACT_ANGLES_DEG, ROUGHNESS_STD_DEG, mean, sem))
-    sens = coefficient_angle_sensitivity(samples=args.samples, seed=args.seed)
+    sens = impact_angle_sensitivity(samples=args.samples, seed=args.seed)
     print("\nSensitivity (dgamma = 5 deg): e_w, mu_w at the effective angle alpha + gamma1 (default) "
           "or at the nominal alpha")
     print("impact angle [deg] | rebound [deg] eff. | rebound [deg] nom. | |v'|/|v| eff. | |v'|/|v| nom.")

@@ -262,8 +262,10 @@ class WallOptions:
 
     restitution, friction : (value at 0°, slope [1/deg], floor) of e_w, μ_w = max(floor,
         value − slope·α) — default Sommerfeld & Huber (1999) as in the seed (PHYSICS.md §3.1).
-    coefficient_angle : "effective" (α + γ₁, default, §12.1) or "nominal" (α).
-    shadow : "effective_pdf" (default, §12.3) or "simple" (reject α + γ ≤ 0).
+    impact_angle : angle of e_w, μ_w: "effective" (α + γ₁, default, §12.1) or "nominal" (α).
+    shadow_effect : "weighted" (the sin(α + γ)-weighted effective pdf, default, §12.3) or
+        "rejection" (only reject α + γ ≤ 0).
+    (Names and values as in eulag.config's [walls] section.)
     lateral_roughness : also tilt the wall laterally by γ₂ ~ N(0, Δγ) (default, §12.2).
     rotation : track the particle spin (else ω is zero in the impulse and not updated).
     max_impacts : cap on rough impacts per call before the contact regime takes over.
@@ -271,8 +273,8 @@ class WallOptions:
 
     restitution: tuple = (1.0, 0.01, 0.8)
     friction: tuple = (0.4, 0.015, 0.1)
-    coefficient_angle: str = "effective"
-    shadow: str = "effective_pdf"
+    impact_angle: str = "effective"
+    shadow_effect: str = "weighted"
     lateral_roughness: bool = True
     rotation: bool = True
     max_impacts: int = 10
@@ -288,10 +290,10 @@ class WallOptions:
             raise ValueError("restitution value and floor must lie in [0, 1]")
         if self.friction[0] < 0.0 or self.friction[2] < 0.0:
             raise ValueError("friction value and floor must be >= 0")
-        if self.coefficient_angle not in ("effective", "nominal"):
-            raise ValueError("coefficient_angle must be 'effective' or 'nominal'")
-        if self.shadow not in ("effective_pdf", "simple"):
-            raise ValueError("shadow must be 'effective_pdf' or 'simple'")
+        if self.impact_angle not in ("effective", "nominal"):
+            raise ValueError("impact_angle must be 'effective' or 'nominal'")
+        if self.shadow_effect not in ("weighted", "rejection"):
+            raise ValueError("shadow_effect must be 'weighted' or 'rejection'")
         if int(self.max_impacts) < 1:
             raise ValueError("max_impacts must be >= 1")
 
@@ -321,8 +323,8 @@ def make_wall_collision(options=WallOptions()):
     """
     e0, e_slope, e_floor = options.restitution
     mu0, mu_slope, mu_floor = options.friction
-    effective_angle = options.coefficient_angle == "effective"
-    shadow_pdf = options.shadow == "effective_pdf"
+    effective_angle = options.impact_angle == "effective"
+    shadow_pdf = options.shadow_effect == "weighted"
     lateral = options.lateral_roughness
     rotation = options.rotation
     max_impacts = int(options.max_impacts)

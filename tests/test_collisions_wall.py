@@ -20,8 +20,8 @@ DEG = math.pi / 180
 SMOOTH_MIRROR = cw.WallOptions(restitution=(1.0, 0.0, 1.0), friction=(0.0, 0.0, 0.0))
 OPTION_SETS = [
     cw.WallOptions(),
-    cw.WallOptions(coefficient_angle="nominal"),
-    cw.WallOptions(shadow="simple"),
+    cw.WallOptions(impact_angle="nominal"),
+    cw.WallOptions(shadow_effect="rejection"),
     cw.WallOptions(lateral_roughness=False),
     cw.WallOptions(rotation=False),
     cw.WallOptions(max_impacts=1),
@@ -427,11 +427,11 @@ def test_rough_wall_rebound_table_grazing_particles_thrown_away(capsys):
     assert np.all(sem[small, 1:] < 0.1)
 
 
-def test_coefficient_angle_sensitivity_effective_vs_nominal():
+def test_impact_angle_sensitivity_effective_vs_nominal():
     """§3.1/§12.1: evaluating e_w, μ_w at α + γ₁ instead of α. At grazing impacts the effective
     angle is larger, so friction (and restitution) are lower: the rebound keeps more speed. The
     effect on the mean rebound angle stays within a few degrees (printed by collisions.tables)."""
-    sens = tables.coefficient_angle_sensitivity(impact_angles_deg=(1.0, 5.0, 45.0), samples=20_000, seed=4)
+    sens = tables.impact_angle_sensitivity(impact_angles_deg=(1.0, 5.0, 45.0), samples=20_000, seed=4)
     beta_eff, speed_eff = sens["effective"]
     beta_nom, speed_nom = sens["nominal"]
     assert speed_eff[0] > speed_nom[0]  # grazing: less friction at the steeper effective angle
