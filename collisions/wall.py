@@ -265,10 +265,12 @@ class WallOptions:
     impact_angle : angle of e_w, μ_w: "effective" (α + γ₁, default, §12.1) or "nominal" (α).
     shadow_effect : "weighted" (the sin(α + γ)-weighted effective pdf, default, §12.3) or
         "rejection" (only reject α + γ ≤ 0).
-    (Names and values as in eulag.config's [walls] section.)
     lateral_roughness : also tilt the wall laterally by γ₂ ~ N(0, Δγ) (default, §12.2).
     rotation : track the particle spin (else ω is zero in the impulse and not updated).
     max_impacts : cap on rough impacts per call before the contact regime takes over.
+
+    impact_angle, shadow_effect and lateral_roughness carry the names and values of the
+    [walls] section of eulag.config; rotation is [physics] rotation.
     """
 
     restitution: tuple = (1.0, 0.01, 0.8)
@@ -318,7 +320,7 @@ def make_wall_collision(options=WallOptions()):
     rng      int64[5] state of ``collisions.random`` (stream STREAM_WALL; advanced)
 
     Returns WALL_NO_IMPACT (0), WALL_REBOUND (1), WALL_SLIDING (2) or WALL_ROLLING (3).
-    Afterwards v·n₀ ≥ 0 (> v_min for a rebound, 0 up to round-off for contact), the
+    Afterwards v·n₀ ≥ 0 (≥ v_min and > 0 for a rebound, 0 up to round-off for contact), the
     translational + rotational kinetic energy has not increased, and r ≤ R − r_p < R.
     """
     e0, e_slope, e_floor = options.restitution
