@@ -81,6 +81,10 @@ class Section:
         self.wall_nz = np.cos(th)
         self.wall_ny = np.sin(th)
         self.wall_distance = re[-1] - rc[-1]
+        # the ring inside the wall ring (second-order wall gradient of the laminar mode)
+        self.wall_inner = idx[nr - 2, :]
+        self.wall_inner_faces = np.arange((nr - 2) * nt, (nr - 1) * nt)  # radial faces P=inner, N=wall
+        self.wall_inner_distance = re[-1] - rc[-2]
 
         # cell metrics
         self.area = mesh.cell_area.ravel().copy()
