@@ -222,9 +222,7 @@ class _StationSolver:
         inner = sec.wall_inner
 
         ux_conv = st.ux
-        if np.any(ux_conv <= 0.0):
-            self.check("u_x (the marching solver needs positive axial velocity)", np.where(ux_conv > 0, 1.0, -1.0),
-                       positive=True)
+        self.check("u_x (the solver needs positive axial velocity: no reversed flow)", ux_conv, positive=True)
         ax = rho * A * ux_conv / dx  # axial convection coefficient (times c0 below)
 
         # ---------------- momentum matrix (shared by u_x, u_y, u_z)
@@ -611,6 +609,7 @@ def solve(
         station_iterations=iters,
         converged=bool(converged),
         wall_time=time.perf_counter() - t0,
+        face_flux=st.flux.copy(),  # cross-section face mass fluxes of the last station (restarts)
     )
 
 

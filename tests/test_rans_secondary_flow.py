@@ -45,7 +45,6 @@ def test_curl_force_drives_two_mirror_symmetric_counter_rotating_cells(curl_case
     vertical = uy[: m.nr // 2, [3 * m.nt // 4 - 1, 3 * m.nt // 4]].mean()
     assert vertical < 0
     # circulation of each half: opposite signs (two cells); from the cross-section vorticity
-    wx = np.zeros_like(uy)
     sec = m.geometry()
     duy = sec.gradient(uy.ravel(), 0.0)
     duz = sec.gradient(uz.ravel(), 0.0)
