@@ -1,0 +1,273 @@
+"""Gas fields seen by the particles: a per-cell table and its interpolation to a point.
+
+``FieldTable.from_gas(mesh, gas)`` packs, per cell, the mean velocity U (3), k, ε, the
+mean-flow vorticity ∇ × U (3) and ∇k (3) into one contiguous array ``values[nx, nr, nt, NF]``
+(gradients: axial by central differences, cross-section by the finite-volume gradient of
+``rans.operators.Section``); ``axis[nx, NF]`` holds the ring-0 means, the value on the axis.
+
+``interpolate`` (numba) evaluates the fields at a point (x, y, z):
+
+* axially linear between station centres (constant beyond the first and last);
+* in the cross-section bilinear in (r, θ) between the four surrounding cell centres;
+* inside the innermost ring (r below the ring-0 centre) linear in r between the axis value
+  and the ring values, so the fields are single-valued and continuous through the axis;
+* inside the wall-function cell (beyond the wall-ring centre, distance y from the wall less
+  than y_P) the log-law reconstruction of DESIGN.md / PHYSICS.md §6.2, with the wall-ring
+  values at the particle's (x, θ):
+
+      U_t(y) = U_t,P g(y*)/g(y*_P),   g(y*) = ln(E y*)/κ  (y* ≥ y*_v),  g = y*  (y* < y*_v)
+      u_n(y) = u_n,P y / y_P           (wall-normal component, zero at the wall)
+      ∇ × U  = n₀ × dU_t/dy            (n₀ the inward wall normal)
+      k = k_P,   ε = ε_P y_P / max(y, y_v),   ∇k = 0
+
+  with y* = C_μ^¼ k_P^½ y/ν and y*_v ≈ 11.53 the point where the linear and logarithmic
+  profiles meet (continuous profile); ε ∝ 1/y holds in the log layer and is held at its
+  sublayer-edge value below y_v, where the log law does not apply.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from collisions.conf import JIT_FLAGS, KERNEL_FLAGS
+from rans import kepsilon as ke
+
+__all__ = ["FieldTable", "interpolate", "NF", "F_UX", "F_UY", "F_UZ", "F_K", "F_EPS",
+           "F_WX", "F_WY", "F_WZ", "F_DKX", "F_DKY", "F_DKZ", "viscous_edge_yplus"]
+
+# field indices of the table (last axis)
+F_UX, F_UY, F_UZ = 0, 1, 2  # mean gas velocity [m s-1]
+F_K, F_EPS = 3, 4  # k [m2 s-2], epsilon [m2 s-3]
+F_WX, F_WY, F_WZ = 5, 6, 7  # vorticity of the mean flow, curl U [s-1]
+F_DKX, F_DKY, F_DKZ = 8, 9, 10  # grad k [m s-2]
+NF = 11
+
+
+def viscous_edge_yplus(kappa=ke.KAPPA, e_wall=ke.E_WALL):
+    """y*_v where the sublayer profile u+ = y+ meets the log law u+ = ln(E y+)/κ [-] (≈ 11.53)."""
+    y = 11.0
+    for _ in range(50):  # Newton on f(y) = y - ln(E y)/kappa
+        f = y - math.log(e_wall * y) / kappa
+        y -= f / (1.0 - 1.0 / (kappa * y))
+    return y
+
+
+YSTAR_VISCOUS = viscous_edge_yplus()
+
+
+@dataclass(frozen=True, eq=False)
+class FieldTable:
+    """Per-cell gas data for the tracker (arrays in SI units, see the module docstring).
+
+    values (nx, nr, nt, NF); axis (nx, NF); x_centres (nx,); r_centres (nr,); r_edges (nr+1,);
+    x_edges (nx+1,); nt; length, radius [m]; nu [m2 s-1] kinematic viscosity; rho [kg m-3].
+    """
+
+    values: np.ndarray
+    axis: np.ndarray
+    x_centres: np.ndarray
+    x_edges: np.ndarray
+    r_centres: np.ndarray
+    r_edges: np.ndarray
+    nt: int
+    length: float
+    radius: float
+    rho: float
+    nu: float
+
+    @classmethod
+    def from_gas(cls, mesh, gas):
+        """Table of a converged :class:`rans.GasField` ``gas`` on ``mesh``."""
+        nx, nr, nt = mesh.shape
+        sec = mesh.geometry()
+        ux, uy, uz, k, eps = (np.asarray(getattr(gas, n), dtype=np.float64).reshape(nx, nr, nt)
+                              for n in ("ux", "uy", "uz", "k", "epsilon"))
+        # cross-section gradients (d/dz, d/dy) per station; velocities vanish at the wall
+        g = {}
+        for name, phi, wall in (("ux", ux, 0.0), ("uy", uy, 0.0), ("uz", uz, 0.0), ("k", k, None)):
+            dz = np.empty((nx, nr, nt))
+            dy = np.empty((nx, nr, nt))
+            for i in range(nx):
+                a, b = sec.gradient(phi[i].ravel(), wall)
+                dz[i] = a.reshape(nr, nt)
+                dy[i] = b.reshape(nr, nt)
+            if nx > 1:
+                dx = np.gradient(phi, mesh.x, axis=0)
+            else:
+                dx = np.zeros_like(phi)
+            g[name] = (dx, dy, dz)
+        tab = np.empty((nx, nr, nt, NF))
+        tab[..., F_UX] = ux
+        tab[..., F_UY] = uy
+        tab[..., F_UZ] = uz
+        tab[..., F_K] = k
+        tab[..., F_EPS] = eps
+        tab[..., F_WX] = g["uz"][1] - g["uy"][2]  # d uz/dy - d uy/dz
+        tab[..., F_WY] = g["ux"][2] - g["uz"][0]  # d ux/dz - d uz/dx
+        tab[..., F_WZ] = g["uy"][0] - g["ux"][1]  # d uy/dx - d ux/dy
+        tab[..., F_DKX] = g["k"][0]
+        tab[..., F_DKY] = g["k"][1]
+        tab[..., F_DKZ] = g["k"][2]
+        if not np.all(np.isfinite(tab)):
+            raise ValueError("gas field has non-finite values; cannot track particles in it")
+        if np.any(k <= 0.0) or np.any(eps <= 0.0):
+            raise ValueError("gas field has k <= 0 or epsilon <= 0; cannot track particles in it")
+        axis = tab[:, 0, :, :].mean(axis=1)
+        return cls(values=np.ascontiguousarray(tab), axis=np.ascontiguousarray(axis),
+                   x_centres=np.asarray(mesh.x, dtype=np.float64).copy(),
+                   x_edges=np.asarray(mesh.x_edges, dtype=np.float64).copy(),
+                   r_centres=np.asarray(mesh.r, dtype=np.float64).copy(),
+                   r_edges=np.asarray(mesh.r_edges, dtype=np.float64).copy(),
+                   nt=int(nt), length=float(mesh.length), radius=float(mesh.radius),
+                   rho=float(gas.gas.density), nu=float(gas.gas.kinematic_viscosity))
+
+    @property
+    def shape(self):
+        return self.values.shape[:3]
+
+    def at(self, x, y, z):
+        """Fields (NF,) at one point (Python convenience around ``interpolate``)."""
+        out = np.empty(NF)
+        interpolate(float(x), float(y), float(z), self.values, self.axis, self.x_centres,
+                    self.r_centres, self.radius, self.nu, out)
+        return out
+
+
+_C_MU_QUARTER = ke.C_MU**0.25
+_KAPPA = ke.KAPPA
+_E_WALL = ke.E_WALL
+
+
+@njit(**JIT_FLAGS)
+def wall_profile(ystar):
+    """u+ of the continuous sublayer/log-law profile at y* [-] (y* < y*_v: y*, else ln(E y*)/κ)."""
+    if ystar < YSTAR_VISCOUS:
+        return ystar
+    return math.log(_E_WALL * ystar) / _KAPPA
+
+
+@njit(**JIT_FLAGS)
+def wall_profile_slope(ystar):
+    """d u+/d y* of ``wall_profile`` [-]."""
+    if ystar < YSTAR_VISCOUS:
+        return 1.0
+    return 1.0 / (_KAPPA * ystar)
+
+
+@njit(**KERNEL_FLAGS)
+def _blend_section(tab, i, j, k0, k1, wt, f, out, scale):
+    """out[f] += scale * ((1 - wt) tab[i, j, k0, f] + wt tab[i, j, k1, f]) for all fields."""
+    for q in range(f):
+        out[q] += scale * ((1.0 - wt) * tab[i, j, k0, q] + wt * tab[i, j, k1, q])
+
+
+@njit(**KERNEL_FLAGS)
+def interpolate(x, y, z, tab, axis, xc, rc, radius, nu, out):
+    """Gas fields at the point (x, y, z) [m] into ``out`` (NF,); see the module docstring.
+
+    tab (nx, nr, nt, NF), axis (nx, NF), xc (nx,) station centres (uniform), rc (nr,) ring
+    centres, radius [m], nu [m2 s-1].  Points beyond r = R are treated as on the wall ring.
+    """
+    nx = tab.shape[0]
+    nr = tab.shape[1]
+    nt = tab.shape[2]
+    for q in range(NF):
+        out[q] = 0.0
+    # axial weights
+    if nx == 1:
+        i0 = 0
+        i1 = 0
+        wx = 0.0
+    else:
+        s = (x - xc[0]) / (xc[1] - xc[0])
+        if s <= 0.0:
+            i0 = 0
+            wx = 0.0
+        elif s >= nx - 1:
+            i0 = nx - 2
+            wx = 1.0
+        else:
+            i0 = int(s)
+            wx = s - i0
+        i1 = i0 + 1
+    # azimuthal weights (sector centres at (k + 1/2) dtheta)
+    th = math.atan2(y, z)
+    if th < 0.0:
+        th += 2.0 * math.pi
+    s = th * nt / (2.0 * math.pi) - 0.5
+    kf = math.floor(s)
+    wt = s - kf
+    k0 = int(kf) % nt
+    k1 = (k0 + 1) % nt
+    r = math.sqrt(y * y + z * z)
+    if r < rc[nr - 1]:
+        if r < rc[0]:
+            wr = r / rc[0]
+            for q in range(NF):
+                out[q] = (1.0 - wr) * ((1.0 - wx) * axis[i0, q] + wx * axis[i1, q])
+            _blend_section(tab, i0, 0, k0, k1, wt, NF, out, wr * (1.0 - wx))
+            if wx > 0.0:
+                _blend_section(tab, i1, 0, k0, k1, wt, NF, out, wr * wx)
+            return
+        lo = 0
+        hi = nr - 1
+        while hi - lo > 1:
+            mid = (lo + hi) >> 1
+            if rc[mid] <= r:
+                lo = mid
+            else:
+                hi = mid
+        wr = (r - rc[lo]) / (rc[lo + 1] - rc[lo])
+        _blend_section(tab, i0, lo, k0, k1, wt, NF, out, (1.0 - wr) * (1.0 - wx))
+        _blend_section(tab, i0, lo + 1, k0, k1, wt, NF, out, wr * (1.0 - wx))
+        if wx > 0.0:
+            _blend_section(tab, i1, lo, k0, k1, wt, NF, out, (1.0 - wr) * wx)
+            _blend_section(tab, i1, lo + 1, k0, k1, wt, NF, out, wr * wx)
+        return
+    # wall-function cell: wall-ring values at (x, theta), then the log-law reconstruction
+    j = nr - 1
+    _blend_section(tab, i0, j, k0, k1, wt, F_EPS + 1, out, 1.0 - wx)
+    if wx > 0.0:
+        _blend_section(tab, i1, j, k0, k1, wt, F_EPS + 1, out, wx)
+    kp = out[F_K]
+    epsp = out[F_EPS]
+    y_p = radius - rc[nr - 1]
+    y_w = radius - r
+    if y_w < 1e-9 * radius:
+        y_w = 1e-9 * radius
+    if r > 0.0:
+        ery = y / r
+        erz = z / r
+    else:
+        ery = 0.0
+        erz = 1.0
+    un = out[F_UY] * ery + out[F_UZ] * erz  # outward radial component at the wall-ring centre
+    tx = out[F_UX]
+    ty = out[F_UY] - un * ery
+    tz = out[F_UZ] - un * erz
+    ustar = _C_MU_QUARTER * math.sqrt(kp)
+    ys_p = ustar * y_p / nu
+    ys = ustar * y_w / nu
+    gp = wall_profile(ys_p)
+    ratio = wall_profile(ys) / gp
+    slope = wall_profile_slope(ys) * ustar / (nu * gp)  # d(U_t/U_t,P)/dy [1/m]
+    fn = y_w / y_p
+    out[F_UX] = tx * ratio
+    out[F_UY] = ty * ratio + un * fn * ery
+    out[F_UZ] = tz * ratio + un * fn * erz
+    # curl U = n0 x dU_t/dy with the inward normal n0 = (0, -ery, -erz)
+    dtx = tx * slope
+    dty = ty * slope
+    dtz = tz * slope
+    out[F_WX] = -ery * dtz + erz * dty
+    out[F_WY] = -erz * dtx
+    out[F_WZ] = ery * dtx
+    y_v = YSTAR_VISCOUS * nu / ustar
+    out[F_EPS] = epsp * y_p / max(y_w, y_v)
+    out[F_DKX] = 0.0
+    out[F_DKY] = 0.0
+    out[F_DKZ] = 0.0

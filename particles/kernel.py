@@ -1,0 +1,700 @@
+"""The compiled tracking kernel: one parcel from the inlet to the outlet, batch by batch.
+
+``make_tracker(options)`` builds, once per set of physics switches (memoised), the numba
+functions of a Lagrangian pass.  Switches are compile-time constants of the closures, so
+a scene that turns off Magnus lift, rotation or inter-particle collisions runs a kernel
+that does not contain them (DESIGN.md "Numba").
+
+Per particle step (PHYSICS.md §2.3):
+
+1. fields at x_n (interpolated at the end of the previous step): U, k, ε, ∇×U, ∇k;
+   u_F = U + u′_F;
+2. time step Δt = c · min(T_L, cell-crossing time, 0.1/f_coll) (``step_rule = "default"``;
+   the crossing time uses the axial cell length and the *ring thickness*, never the arc
+   length, so the small sectors at the axis do not force small steps) or
+   c · min(τ_p, T_L, 1/f_coll) (``"paper"``);
+3. forces frozen over the step: drag (Schiller–Naumann), reduced gravity, Saffman–Mei and
+   Magnus lift; the velocity and position advanced with the exact solution of
+   du/dt = (u_F − u)/τ_p + a, stable for any Δt/τ_p; the spin likewise relaxes toward
+   ½ ∇×U with the torque's time scale τ_r;
+4. a step that would end beyond the wall contact radius R − r_p is shortened to the
+   straight-line contact time (if at least 5 % of the step remains; otherwise the centre
+   is put on the contact radius), and the rough-wall collision follows;
+5. the segment x_n → x_{n+1} is split between the cells it crosses by time fraction and
+   sampled (occupancy, mass flux, velocity moments, spin moments, the exact fluid impulse
+   J = m[(u^{n+1} − u^n) − g′Δt] and u′_F·J);
+6. fields at x_{n+1}; the fluid velocity seen is updated by the Langevin model of
+   Sommerfeld et al. (1993) with R_P = R_L(Δt) R_E(Δr), Δr = (u_F − u_p)Δt, plus the
+   (1 − R_P) T_L ∂⟨u′_i u′_j⟩/∂x_j drift correction (PHYSICS.md §2);
+7. wall collision (collisions.wall, which also mirrors u′_n) and the stochastic
+   inter-particle collision against a fictitious partner drawn from the previous pass's
+   cell statistics (collisions.interparticle);
+8. a parcel leaving through the outlet is counted EXITED; one crossing the inlet plane
+   backwards is reflected (counted); one exceeding the residence-time or step cap is
+   stopped and counted STUCK; a non-finite state is counted LOST (must never happen).
+
+Collision velocity jumps are not part of J (DESIGN.md), so the momentum budget
+Σ Ṅ J = Σ Ṅ m [u_out − u_in − g′ t_res − Δu_wall − Δu_pp − Δu_inlet] closes to round-off.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from collisions.conf import JIT_FLAGS, KERNEL_FLAGS
+from collisions.interparticle import InterparticleOptions, make_interparticle_collision
+from collisions.random import (STREAM_COLLISION, STREAM_DISPERSION, STREAM_INJECTION, STREAM_WALL,
+                               next_normal_pair, next_uniform_pair, rng_state)
+from collisions.wall import (WALL_REBOUND, WALL_ROLLING, WALL_SLIDING, WallOptions,
+                             make_wall_collision)
+from rans.mesh import locate_cell
+
+from . import forces as fl
+from .fields import F_DKX, F_EPS, F_K, F_UX, F_WX, NF, interpolate
+from .layout import (A_J, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
+                     B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP,
+                     B_RESIDENCE, B_WALL, B_WEIGHT, NBUD, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP,
+                     C_REBOUNDS, C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, CS_F, CS_N, CS_OK,
+                     CS_RMS, CS_U, CS_WM, CS_WRMS, N_ANGLE_BINS, N_SPEED_BINS, NACC, NWALL,
+                     P_DGAMMA, P_DP, P_GRAV, P_INJ_RMS, P_MAXSTEPS, P_MU, P_NDOT, P_RHO_F,
+                     P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, S_EXITED, S_LOST,
+                     S_STUCK, W_ANGLE, W_COUNT, W_SPEED)
+
+__all__ = ["PhysicsOptions", "make_motion", "make_tracker", "walk_segment", "MAX_SEGMENTS"]
+
+C_T = 0.24  # T_L = C_T σ²/ε (Sommerfeld 2001; PHYSICS.md §2.1, §12)
+C_L = 3.0  # L_E = C_L T_L σ
+MAX_SEGMENTS = 512  # cells one step may cross (a step crosses ~1; the rest goes to the last cell)
+_WALL_REDO = 0.05  # shorten a wall-crossing step only if this fraction of it remains before contact
+_DEG = 180.0 / math.pi
+
+
+@dataclass(frozen=True)
+class PhysicsOptions:
+    """Compile-time switches of the tracking kernel (one compiled kernel per combination).
+
+    saffman_mei_lift, magnus_lift, rotation, langevin, drift_correction, gravity,
+    inter_particle_collisions : bool — terms of PHYSICS.md §1–§4 (magnus needs rotation).
+    magnus_model : "lun-liu" | "oesterle-bui-dinh".
+    step_rule : "default" | "paper".
+    wall : collisions.WallOptions;  interparticle : collisions.InterparticleOptions.
+    """
+
+    saffman_mei_lift: bool = True
+    magnus_lift: bool = True
+    magnus_model: str = "lun-liu"
+    rotation: bool = True
+    langevin: bool = True
+    drift_correction: bool = True
+    gravity: bool = True
+    inter_particle_collisions: bool = True
+    step_rule: str = "default"
+    wall: WallOptions = field(default_factory=WallOptions)
+    interparticle: InterparticleOptions = field(default_factory=InterparticleOptions)
+
+    def __post_init__(self):
+        if self.magnus_lift and not self.rotation:
+            raise ValueError("magnus_lift needs rotation")
+        if self.magnus_model not in ("lun-liu", "oesterle-bui-dinh"):
+            raise ValueError(f"magnus_model = {self.magnus_model!r}: allowed lun-liu, oesterle-bui-dinh")
+        if self.step_rule not in ("default", "paper"):
+            raise ValueError(f"step_rule = {self.step_rule!r}: allowed default, paper")
+        if self.wall.rotation != self.rotation:
+            object.__setattr__(self, "wall", WallOptions(**{**self.wall.__dict__, "rotation": self.rotation}))
+        if self.interparticle.rotation != self.rotation:
+            object.__setattr__(self, "interparticle",
+                               InterparticleOptions(**{**self.interparticle.__dict__,
+                                                       "rotation": self.rotation}))
+
+
+# ---------------------------------------------------------------------------- geometry
+@njit(**KERNEL_FLAGS)
+def walk_segment(p0x, p0y, p0z, dx, dy, dz, i, j, k, x_edges, r_edges, nt, seg_cell, seg_frac):
+    """Split the straight segment p0 → p0 + d between the cells it crosses.
+
+    (i, j, k): the cell holding p0.  Writes (flat cell index, fraction of the segment) into
+    seg_cell/seg_frac and returns (n_segments, end) with end = 0 inside the pipe, 1 through
+    the outlet plane, 2 through the inlet plane (the fractions then sum to the part inside).
+    Faces: axial planes, ring circles (exact quadratic roots), sector rays (half-lines).
+    """
+    nx = x_edges.shape[0] - 1
+    nr = r_edges.shape[0] - 1
+    dth = 2.0 * math.pi / nt
+    a = dy * dy + dz * dz
+    b = p0y * dy + p0z * dz
+    c = p0y * p0y + p0z * p0z
+    s = 0.0
+    n = 0
+    entry = -1
+    end = 0
+    while True:
+        s_exit = 1.0
+        face = -1
+        if dx > 0.0 and entry != 1:
+            t = (x_edges[i + 1] - p0x) / dx
+            if t < s_exit:
+                s_exit = t
+                face = 0
+        elif dx < 0.0 and entry != 0:
+            t = (x_edges[i] - p0x) / dx
+            if t < s_exit:
+                s_exit = t
+                face = 1
+        if a > 0.0:
+            ro = r_edges[j + 1]
+            disc = b * b - a * (c - ro * ro)
+            if disc > 0.0:
+                t = (-b + math.sqrt(disc)) / a
+                if s < t < s_exit:
+                    s_exit = t
+                    face = 2
+            if j > 0 and entry != 2:
+                ri = r_edges[j]
+                disc = b * b - a * (c - ri * ri)
+                if disc > 0.0:
+                    t = (-b - math.sqrt(disc)) / a
+                    if s < t < s_exit:
+                        s_exit = t
+                        face = 3
+        for side in range(2):
+            if (side == 0 and entry == 5) or (side == 1 and entry == 4):
+                continue
+            phi = (k + 1 - side) * dth
+            sp = math.sin(phi)
+            cp = math.cos(phi)
+            den = dz * sp - dy * cp
+            if den != 0.0:
+                t = (p0y * cp - p0z * sp) / den
+                if s < t < s_exit and (p0y + t * dy) * sp + (p0z + t * dz) * cp > 0.0:
+                    s_exit = t
+                    face = 4 + side
+        if s_exit < s:
+            s_exit = s
+        seg_cell[n] = (i * nr + j) * nt + k
+        seg_frac[n] = s_exit - s
+        n += 1
+        if face < 0:
+            break
+        s = s_exit
+        entry = face
+        if face == 0:
+            i += 1
+            if i >= nx:
+                end = 1
+                break
+        elif face == 1:
+            i -= 1
+            if i < 0:
+                end = 2
+                break
+        elif face == 2:
+            if j + 1 < nr:
+                j += 1
+        elif face == 3:
+            j -= 1
+        elif face == 4:
+            k = (k + 1) % nt
+        else:
+            k = (k - 1) % nt
+        if n >= seg_cell.shape[0]:
+            seg_frac[n - 1] += 1.0 - s  # pathological: the rest stays in the last cell
+            break
+    return n, end
+
+
+# ---------------------------------------------------------------------------- motion
+@lru_cache(maxsize=None)
+def make_motion(options=PhysicsOptions()):
+    """Build ``advance``, the single-step integrator with frozen forces (see module docstring).
+
+        tau_p = advance(pos, vel, omega, uf, vort, dt, prm, impulse)
+
+    pos, vel, omega float64[3] (in/out) [m, m/s, rad/s]; uf float64[3] fluid velocity seen
+    U + u′ [m/s]; vort float64[3] ∇×U at the particle [1/s]; dt [s]; prm runtime parameters
+    (layout.P_*); impulse float64[3] (out) the fluid impulse J = m[(u^{n+1} − u^n) − g′Δt]
+    [kg m/s].  Returns the drag response time τ_p [s] used in the step.
+    """
+    saffman = options.saffman_mei_lift
+    magnus = options.magnus_lift
+    lun_liu = options.magnus_model == "lun-liu"
+    rotation = options.rotation
+    gravity = options.gravity
+
+    @njit(**KERNEL_FLAGS)
+    def advance(pos, vel, omega, uf, vort, dt, prm, impulse):
+        rho_f = prm[P_RHO_F]
+        mu = prm[P_MU]
+        rho_p = prm[P_RHO_P]
+        d = prm[P_DP]
+        m = rho_p * math.pi * d * d * d / 6.0
+        rx = uf[0] - vel[0]
+        ry = uf[1] - vel[1]
+        rz = uf[2] - vel[2]
+        slip = math.sqrt(rx * rx + ry * ry + rz * rz)
+        re_p = rho_f * d * slip / mu
+        tau = fl.response_time(rho_p, d, mu, fl.schiller_naumann_drag_factor(re_p))
+        ax = 0.0
+        ay = 0.0
+        az = 0.0
+        if gravity:
+            ay = -prm[P_GRAV]
+        wfx = vort[0]
+        wfy = vort[1]
+        wfz = vort[2]
+        if saffman:
+            wf = math.sqrt(wfx * wfx + wfy * wfy + wfz * wfz)
+            if wf > 0.0 and re_p > 0.0:
+                re_s = rho_f * d * d * wf / mu
+                c = 0.125 * math.pi * rho_f * d * d * d * fl.saffman_mei_lift_coefficient(re_p, re_s) / m
+                ax += c * (ry * wfz - rz * wfy)
+                ay += c * (rz * wfx - rx * wfz)
+                az += c * (rx * wfy - ry * wfx)
+        if magnus:
+            ox = 0.5 * wfx - omega[0]
+            oy = 0.5 * wfy - omega[1]
+            oz = 0.5 * wfz - omega[2]
+            om = math.sqrt(ox * ox + oy * oy + oz * oz)
+            if om > 0.0 and re_p > 0.0:
+                re_r = rho_f * d * d * om / mu
+                if lun_liu:
+                    clr = fl.lun_liu_1997_lift_coefficient(re_p, re_r)
+                else:
+                    clr = fl.oesterle_bui_dinh_1998_lift_coefficient(re_p, re_r)
+                c = 0.125 * math.pi * rho_f * d * d * clr * slip / (om * m)
+                ax += c * (oy * rz - oz * ry)
+                ay += c * (oz * rx - ox * rz)
+                az += c * (ox * ry - oy * rx)
+        # exact solution with frozen u_F, a, tau: u -> u_inf = u_F + a tau
+        e1 = -math.expm1(-dt / tau)  # 1 - exp(-dt/tau), accurate for small dt/tau
+        for q in range(3):
+            aq = ax if q == 0 else (ay if q == 1 else az)
+            vinf = uf[q] + aq * tau
+            dv = (vinf - vel[q]) * e1
+            pos[q] += vinf * dt - dv * tau
+            vel[q] += dv
+            impulse[q] = m * dv
+        if gravity:
+            impulse[1] += m * prm[P_GRAV] * dt
+        if rotation:
+            ox = 0.5 * vort[0] - omega[0]
+            oy = 0.5 * vort[1] - omega[1]
+            oz = 0.5 * vort[2] - omega[2]
+            om = math.sqrt(ox * ox + oy * oy + oz * oz)
+            re_r = rho_f * d * d * om / mu
+            tau_r = fl.rotational_response_time(rho_p, d, mu, fl.torque_factor(re_r))
+            er = -math.expm1(-dt / tau_r)
+            omega[0] += ox * er
+            omega[1] += oy * er
+            omega[2] += oz * er
+        return tau
+
+    return advance
+
+
+# ---------------------------------------------------------------------------- tracker
+@lru_cache(maxsize=None)
+def make_tracker(options=PhysicsOptions()):
+    """Build ``track_batch`` and ``track_superbatch`` for ``options`` (memoised).
+
+        track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                    x_centres, tab, axis, stats, prm, out, state)
+
+    tracks parcels first … first+count−1 (global ids key their random streams) and adds
+    their samples to the flat vector ``out`` (layout.Layout); ``state`` (count, 16) receives
+    the final parcel state [pos(3), vel(3), omega(3), u′(3), t_res, steps, status, diameter].
+
+        track_superbatch(starts, counts, ..., totals, squares, cross, lay)
+
+    tracks the batches of one super-batch, in parallel (numba threads), each into its own
+    scratch vector, and folds them *in batch order* into totals (Σ_b s_b), squares
+    (Σ_b s_b²) and cross (Σ_b s_b · s_b[mass weight], cell accumulators only), so the result
+    does not depend on the thread count.
+    """
+    advance = make_motion(options)
+    wall_collision = make_wall_collision(options.wall)
+    pp_collision = make_interparticle_collision(options.interparticle)
+    langevin = options.langevin
+    drift = options.drift_correction
+    pp = options.inter_particle_collisions
+    paper_rule = options.step_rule == "paper"
+    rotation = options.rotation
+    gravity = options.gravity
+
+    @njit(**JIT_FLAGS)
+    def track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                    x_centres, tab, axis, stats, prm, out, state):
+        nx = x_edges.shape[0] - 1
+        nr = r_edges.shape[0] - 1
+        ncell = nx * nr * nt
+        off_wall = ncell * NACC
+        off_angle = off_wall + nx * nt * NWALL
+        off_speed = off_angle + N_ANGLE_BINS
+        off_bud = off_speed + N_SPEED_BINS
+        off_cnt = off_bud + NBUD
+        rho_p = prm[P_RHO_P]
+        d = prm[P_DP]
+        r_p = 0.5 * d
+        m = rho_p * math.pi * d * d * d / 6.0
+        ndot = prm[P_NDOT]
+        w_m = ndot * m
+        gred = prm[P_GRAV] if gravity else 0.0
+        c_step = prm[P_STEP]
+        t_cap = prm[P_TCAP]
+        max_steps = prm[P_MAXSTEPS]
+        r_contact = radius - r_p
+        dxc = length / nx
+        speed_max = prm[P_SPEEDMAX]
+        two_pi = 2.0 * math.pi
+        dvals = np.empty(NF)
+        fvals = np.empty(NF)
+        pos = np.empty(3)
+        vel = np.empty(3)
+        omega = np.zeros(3)
+        useen = np.zeros(3)
+        uf = np.empty(3)
+        imp = np.empty(3)
+        dv = np.zeros(3)
+        partner = np.empty(9)
+        seg_cell = np.empty(MAX_SEGMENTS, dtype=np.int64)
+        seg_frac = np.empty(MAX_SEGMENTS)
+        mean_own = np.empty(3)
+        rms = np.empty(3)
+        wmean = np.empty(3)
+        wrms = np.empty(3)
+        saved = np.empty(6)
+        for q in range(count):
+            pid = first + q
+            rng_inj = rng_state(seed, pass_, pid, STREAM_INJECTION, 0)
+            rng_disp = rng_state(seed, pass_, pid, STREAM_DISPERSION, 0)
+            rng_wall = rng_state(seed, pass_, pid, STREAM_WALL, 0)
+            rng_pp = rng_state(seed, pass_, pid, STREAM_COLLISION, 0)
+            # ---- injection: uniform over the section, Gaussian velocity (seed; PHYSICS.md §12)
+            u1, u2 = next_uniform_pair(rng_inj)
+            rr = r_contact * math.sqrt(u1)
+            th = two_pi * u2
+            pos[0] = 0.0
+            pos[1] = rr * math.sin(th)
+            pos[2] = rr * math.cos(th)
+            g0, g1 = next_normal_pair(rng_inj)
+            g2, g3 = next_normal_pair(rng_inj)
+            vel[0] = prm[P_U0] + prm[P_INJ_RMS] * g0
+            vel[1] = prm[P_INJ_RMS] * g1
+            vel[2] = prm[P_INJ_RMS] * g2
+            omega[:] = 0.0
+            interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, radius, nu, fvals)
+            if langevin:
+                sig = math.sqrt(2.0 * fvals[F_K] / 3.0)
+                g4, g5 = next_normal_pair(rng_inj)
+                useen[0] = sig * g3
+                useen[1] = sig * g4
+                useen[2] = sig * g5
+            else:
+                useen[:] = 0.0
+            out[off_cnt + C_INJECTED] += 1.0
+            for c in range(3):
+                out[off_bud + B_MOM_IN + c] += w_m * vel[c]
+            out[off_bud + B_MASS_IN] += w_m
+            t = 0.0
+            steps = 0
+            status = 0
+            while True:
+                # ---- fields at x_n (fvals), time step
+                kk = fvals[F_K]
+                eps = fvals[F_EPS]
+                sig2 = 2.0 * kk / 3.0
+                t_l = C_T * sig2 / eps
+                for c in range(3):
+                    uf[c] = fvals[F_UX + c] + useen[c]
+                ci, cj, ck = locate_cell(pos[0], pos[1], pos[2], length, nx, r_edges, nt)
+                if ci < 0:
+                    status = S_LOST
+                    break
+                cell = (ci * nr + cj) * nt + ck
+                fcoll = 0.0
+                if pp:
+                    if stats[cell, CS_OK] > 0.0:
+                        fcoll = stats[cell, CS_F]
+                if paper_rule:
+                    rx = uf[0] - vel[0]
+                    ry = uf[1] - vel[1]
+                    rz = uf[2] - vel[2]
+                    re_p = prm[P_RHO_F] * d * math.sqrt(rx * rx + ry * ry + rz * rz) / prm[P_MU]
+                    tau_p = fl.response_time(rho_p, d, prm[P_MU], fl.schiller_naumann_drag_factor(re_p))
+                    lim = min(tau_p, t_l)
+                    if fcoll > 0.0:
+                        lim = min(lim, 1.0 / fcoll)
+                else:
+                    vperp = math.sqrt(vel[1] * vel[1] + vel[2] * vel[2])
+                    lim = t_l
+                    if abs(vel[0]) > 0.0:
+                        lim = min(lim, dxc / abs(vel[0]))
+                    if vperp > 0.0:
+                        lim = min(lim, (r_edges[cj + 1] - r_edges[cj]) / vperp)
+                    if fcoll > 0.0:
+                        lim = min(lim, 0.1 / fcoll)
+                dt = c_step * lim
+                if dt > t_cap - t:
+                    dt = max(t_cap - t, 1e-300)
+                # ---- advance with frozen forces
+                for c in range(3):
+                    saved[c] = pos[c]
+                    saved[3 + c] = vel[c]
+                wsx = omega[0]
+                wsy = omega[1]
+                wsz = omega[2]
+                rlx = uf[0] - vel[0]
+                rly = uf[1] - vel[1]
+                rlz = uf[2] - vel[2]
+                advance(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
+                hit_wall = False
+                r1 = math.sqrt(pos[1] * pos[1] + pos[2] * pos[2])
+                if r1 > r_contact:
+                    hit_wall = True
+                    # straight-line contact time of the chord
+                    ey = pos[1] - saved[1]
+                    ez = pos[2] - saved[2]
+                    aa = ey * ey + ez * ez
+                    bb = saved[1] * ey + saved[2] * ez
+                    cc = saved[1] * saved[1] + saved[2] * saved[2] - r_contact * r_contact
+                    sw = 1.0
+                    if cc < 0.0 and aa > 0.0:
+                        sw = (-bb + math.sqrt(max(bb * bb - aa * cc, 0.0))) / aa
+                    if _WALL_REDO <= sw < 1.0:
+                        dt *= sw
+                        for c in range(3):
+                            pos[c] = saved[c]
+                            vel[c] = saved[3 + c]
+                        if rotation:
+                            omega[0] = wsx
+                            omega[1] = wsy
+                            omega[2] = wsz
+                        advance(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
+                        r1 = math.sqrt(pos[1] * pos[1] + pos[2] * pos[2])
+                    if r1 > r_contact:
+                        f = r_contact / r1
+                        pos[1] *= f
+                        pos[2] *= f
+                # ---- sample the segment (split by time fraction between cells)
+                dxs = pos[0] - saved[0]
+                dys = pos[1] - saved[1]
+                dzs = pos[2] - saved[2]
+                nseg, end = walk_segment(saved[0], saved[1], saved[2], dxs, dys, dzs, ci, cj, ck,
+                                         x_edges, r_edges, nt, seg_cell, seg_frac)
+                inside = 0.0
+                uj = useen[0] * imp[0] + useen[1] * imp[1] + useen[2] * imp[2]
+                wdt = ndot * dt
+                ux = dxs / dt
+                uy = dys / dt
+                uz = dzs / dt
+                last = seg_cell[0]
+                for s_ in range(nseg):
+                    f = seg_frac[s_]
+                    if f <= 0.0:
+                        continue
+                    cc_ = seg_cell[s_]
+                    last = cc_
+                    inside += f
+                    base = cc_ * NACC
+                    wn = wdt * f
+                    wmf = wn * m
+                    out[base + A_WN] += wn
+                    out[base + A_WM] += wmf
+                    out[base + A_MU] += w_m * f * dxs
+                    out[base + A_MU + 1] += w_m * f * dys
+                    out[base + A_MU + 2] += w_m * f * dzs
+                    out[base + A_MUU] += wmf * ux * ux
+                    out[base + A_MUU + 1] += wmf * uy * uy
+                    out[base + A_MUU + 2] += wmf * uz * uz
+                    out[base + A_J] += ndot * f * imp[0]
+                    out[base + A_J + 1] += ndot * f * imp[1]
+                    out[base + A_J + 2] += ndot * f * imp[2]
+                    out[base + A_SK] += ndot * f * uj
+                    if rotation:
+                        out[base + A_NW] += wn * omega[0]
+                        out[base + A_NW + 1] += wn * omega[1]
+                        out[base + A_NW + 2] += wn * omega[2]
+                        out[base + A_NWW] += wn * omega[0] * omega[0]
+                        out[base + A_NWW + 1] += wn * omega[1] * omega[1]
+                        out[base + A_NWW + 2] += wn * omega[2] * omega[2]
+                    out[base + A_VISITS] += 1.0
+                if inside < 1.0:  # the part beyond the inlet/outlet plane: its impulse stays in the pipe
+                    base = last * NACC
+                    rest = 1.0 - inside
+                    out[base + A_J] += ndot * rest * imp[0]
+                    out[base + A_J + 1] += ndot * rest * imp[1]
+                    out[base + A_J + 2] += ndot * rest * imp[2]
+                    out[base + A_SK] += ndot * rest * uj
+                for c in range(3):
+                    out[off_bud + B_J + c] += ndot * imp[c]
+                out[off_bud + B_WEIGHT + 1] -= w_m * gred * dt
+                t += dt
+                steps += 1
+                if end == 1:
+                    status = S_EXITED
+                    break
+                if end == 2:  # reflected at the inlet plane (a symmetry plane for the particles)
+                    pos[0] = -pos[0]
+                    out[off_bud + B_INLET] += -2.0 * w_m * vel[0]
+                    vel[0] = -vel[0]
+                    useen[0] = -useen[0]
+                    out[off_cnt + C_INLET] += 1.0
+                    if pos[0] > length:
+                        pos[0] = length
+                # ---- fields at x_{n+1}; Langevin update of the fluid velocity seen
+                interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, radius, nu, dvals)
+                if langevin:
+                    sig2n = 2.0 * dvals[F_K] / 3.0
+                    sign = math.sqrt(sig2n)
+                    t_ln = C_T * sig2n / dvals[F_EPS]
+                    r_l = math.exp(-dt / t_ln)
+                    drx = rlx * dt
+                    dry = rly * dt
+                    drz = rlz * dt
+                    dr2 = drx * drx + dry * dry + drz * drz
+                    z0, z1 = next_normal_pair(rng_disp)
+                    z2, _z3 = next_normal_pair(rng_disp)
+                    if dr2 > 0.0:
+                        dr = math.sqrt(dr2)
+                        l_e = C_L * t_ln * sign
+                        fr = math.exp(-dr / l_e)
+                        gr = (1.0 - 0.5 * dr / l_e) * fr
+                        fg = (fr - gr) / dr2
+                        re0 = fg * drx * drx + gr
+                        re1 = fg * dry * dry + gr
+                        re2 = fg * drz * drz + gr
+                    else:
+                        re0 = 1.0
+                        re1 = 1.0
+                        re2 = 1.0
+                    for c in range(3):
+                        rp = r_l * (re0 if c == 0 else (re1 if c == 1 else re2))
+                        zc = z0 if c == 0 else (z1 if c == 1 else z2)
+                        un = rp * useen[c] + sign * math.sqrt(max(0.0, 1.0 - rp * rp)) * zc
+                        if drift:
+                            un += (1.0 - rp) * t_ln * (2.0 / 3.0) * dvals[F_DKX + c]
+                        useen[c] = un
+                for qq in range(NF):
+                    fvals[qq] = dvals[qq]
+                # ---- wall collision
+                if hit_wall:
+                    vmag = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
+                    rw = math.sqrt(pos[1] * pos[1] + pos[2] * pos[2])
+                    vn = -(vel[1] * pos[1] + vel[2] * pos[2]) / rw if rw > 0.0 else 0.0
+                    dv[:] = 0.0
+                    code = wall_collision(pos, vel, omega, useen, dv, r_p, radius, prm[P_DGAMMA],
+                                          prm[P_VMIN], rng_wall)
+                    if code == WALL_REBOUND:
+                        out[off_cnt + C_REBOUNDS] += 1.0
+                    elif code == WALL_SLIDING:
+                        out[off_cnt + C_SLIDING] += 1.0
+                    elif code == WALL_ROLLING:
+                        out[off_cnt + C_ROLLING] += 1.0
+                    if code == WALL_REBOUND:
+                        alpha = math.asin(min(1.0, max(0.0, -vn / vmag))) * _DEG if vmag > 0.0 else 0.0
+                        wi = min(int(pos[0] / dxc), nx - 1)
+                        thw = math.atan2(pos[1], pos[2])
+                        if thw < 0.0:
+                            thw += two_pi
+                        wk = min(int(thw / two_pi * nt), nt - 1)
+                        wb = off_wall + (wi * nt + wk) * NWALL
+                        out[wb + W_COUNT] += ndot
+                        out[wb + W_ANGLE] += ndot * alpha
+                        out[wb + W_SPEED] += ndot * vmag
+                        out[off_angle + min(int(alpha), N_ANGLE_BINS - 1)] += ndot
+                        out[off_speed + min(int(vmag / speed_max * N_SPEED_BINS), N_SPEED_BINS - 1)] += ndot
+                    for c in range(3):
+                        out[off_bud + B_WALL + c] += w_m * dv[c]
+                    interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, radius, nu, fvals)
+                # ---- inter-particle collision with a fictitious partner (previous pass's statistics)
+                if pp:
+                    ci, cj, ck = locate_cell(pos[0], pos[1], pos[2], length, nx, r_edges, nt)
+                    if ci >= 0:
+                        cell = (ci * nr + cj) * nt + ck
+                        if stats[cell, CS_OK] > 0.0:
+                            for c in range(3):
+                                mean_own[c] = stats[cell, CS_U + c]
+                                rms[c] = stats[cell, CS_RMS + c]
+                                wmean[c] = stats[cell, CS_WM + c]
+                                wrms[c] = stats[cell, CS_WRMS + c]
+                            rx = fvals[F_UX] + useen[0] - vel[0]
+                            ry = fvals[F_UX + 1] + useen[1] - vel[1]
+                            rz = fvals[F_UX + 2] + useen[2] - vel[2]
+                            re_p = prm[P_RHO_F] * d * math.sqrt(rx * rx + ry * ry + rz * rz) / prm[P_MU]
+                            tau_p = fl.response_time(rho_p, d, prm[P_MU],
+                                                     fl.schiller_naumann_drag_factor(re_p))
+                            t_lc = C_T * (2.0 * fvals[F_K] / 3.0) / fvals[F_EPS]
+                            dv[:] = 0.0
+                            code = pp_collision(vel, omega, d, mean_own, d, mean_own, rms, wmean, wrms,
+                                                stats[cell, CS_N], tau_p / t_lc, dt, rng_pp, dv, partner)
+                            if code > 0:
+                                out[off_cnt + C_PP] += 1.0
+                                for c in range(3):
+                                    out[off_bud + B_PP + c] += w_m * dv[c]
+                # ---- fates
+                if not (math.isfinite(pos[0]) and math.isfinite(pos[1]) and math.isfinite(pos[2])
+                        and math.isfinite(vel[0]) and math.isfinite(vel[1]) and math.isfinite(vel[2])):
+                    status = S_LOST
+                    break
+                if t >= t_cap or steps >= max_steps:
+                    status = S_STUCK
+                    break
+            # ---- bookkeeping of the fate
+            out[off_cnt + C_STEPS] += steps
+            out[off_bud + B_RESIDENCE] += w_m * t
+            if status == S_EXITED:
+                out[off_cnt + C_EXITED] += 1.0
+                out[off_bud + B_MASS_OUT] += w_m
+            elif status == S_STUCK:
+                out[off_cnt + C_STUCK] += 1.0
+                out[off_bud + B_MASS_STUCK] += w_m
+            else:
+                out[off_cnt + C_LOST] += 1.0
+            if status != S_LOST:
+                for c in range(3):
+                    out[off_bud + B_MOM_OUT + c] += w_m * vel[c]
+            for c in range(3):
+                state[q, c] = pos[c]
+                state[q, 3 + c] = vel[c]
+                state[q, 6 + c] = omega[c]
+                state[q, 9 + c] = useen[c]
+            state[q, 12] = t
+            state[q, 13] = steps
+            state[q, 14] = status
+            state[q, 15] = d
+
+    @njit(parallel=True, cache=True)
+    def track_superbatch(starts, counts, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                         x_centres, tab, axis, stats, prm, totals, squares, cross, n_acc_cells):
+        nb = starts.shape[0]
+        size = totals.shape[0]
+        width = min(numba.get_num_threads(), nb)
+        scratch = np.empty((width, size))
+        cmax = 0
+        for b in range(nb):
+            cmax = max(cmax, counts[b])
+        states = np.empty((width, cmax, 16))
+        for b0 in range(0, nb, width):
+            nin = min(width, nb - b0)
+            for s in prange(nin):
+                scratch[s, :] = 0.0
+                track_batch(starts[b0 + s], counts[b0 + s], seed, pass_, x_edges, r_edges, rc, nt,
+                            length, radius, nu, x_centres, tab, axis, stats, prm, scratch[s], states[s])
+            for s in range(nin):  # fold in batch order: independent of the thread count
+                sc = scratch[s]
+                for a in range(size):
+                    v = sc[a]
+                    totals[a] += v
+                    squares[a] += v * v
+                for c in range(n_acc_cells):
+                    wm = sc[c * NACC + A_WM]
+                    if wm != 0.0:
+                        for a in range(NACC):
+                            cross[c * NACC + a] += sc[c * NACC + a] * wm
+
+    return track_batch, track_superbatch

@@ -1,0 +1,427 @@
+"""One Lagrangian pass: inject, track and sample parcels through a converged gas field.
+
+``track(mesh, gas, spec, physics, parcels=..., seed=..., pass_index=...)`` → :class:`Sample`.
+
+Parcels are tracked in fixed-size batches (sizes fixed by the parcel count and
+``batch_size``, never by the thread count); batches are grouped into super-batches of
+``batches_per_superbatch``; each super-batch folds its batches in order and the super-batches
+are summed in order, so the same seed gives the same numbers, bit for bit, for any number of
+threads (and the same super-batches can go to Dask workers unchanged).
+
+Every parcel stands for a particle number flow rate Ṅ = ṁ_p / (m_p · parcels) with the
+particle mass flow ṁ_p = η ρ_F U_0 π R² (mass loading η).  Sampled quantities are
+rate-weighted sums over trajectory segments divided by the cell volume; the spread of the
+batch sums gives a standard error for each of them (``Sample.*_stderr``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from collisions.interparticle import mean_collision_frequency, sommerfeld_2001_correlation
+from collisions.wall import minimum_bounce_speed
+
+from . import forces as fl
+from .fields import FieldTable
+from .kernel import C_T, PhysicsOptions, make_tracker
+from .layout import (A_J, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
+                     B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP, B_RESIDENCE,
+                     B_WALL, B_WEIGHT, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP, C_REBOUNDS,
+                     C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, CS_F, CS_N, CS_OK, CS_RMS, CS_U,
+                     CS_WM, CS_WRMS, N_ANGLE_BINS, N_SPEED_BINS, NACC, NCS, NPRM, NWALL, P_DGAMMA,
+                     P_DP, P_GRAV, P_INJ_RMS, P_MAXSTEPS, P_MIN_VISITS, P_MU, P_NDOT, P_RHO_F,
+                     P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, W_ANGLE, W_COUNT, W_SPEED,
+                     Layout)
+
+__all__ = ["ParticleSpec", "TrackSettings", "Sample", "track", "batch_plan", "GRAVITY"]
+
+GRAVITY = 9.81  # m s-2
+C_EPS3 = 1.8  # S_eps = C_eps3 (eps/k) S_k (seed; PHYSICS.md §5.1, §12)
+
+
+@dataclass(frozen=True)
+class ParticleSpec:
+    """The dispersed phase and its injection (monodisperse spheres).
+
+    diameter [m], density [kg m-3], mass_loading η = ṁ_p/ṁ_gas [-], injection_velocity U_0
+    (mean axial injection velocity, also the gas bulk velocity of ṁ_gas) [m s-1],
+    injection_rms [m s-1] per component, roughness_angle_std_deg Δγ [deg].
+    """
+
+    diameter: float
+    density: float
+    mass_loading: float
+    injection_velocity: float
+    injection_rms: float = 0.5
+    roughness_angle_std_deg: float = 0.0
+
+    @property
+    def mass(self):
+        return self.density * math.pi * self.diameter**3 / 6.0
+
+
+@dataclass(frozen=True)
+class TrackSettings:
+    """Numerical settings of a pass.
+
+    step_factor c of Δt = c · min(...) [-]; batch_size parcels per batch (at least
+    ``min_batches`` batches are formed, for the standard errors); batches_per_superbatch;
+    residence_cap [s] (None: 50 L/U_0) and max_steps per parcel; min_visits: samples a cell
+    needs before its statistics drive collisions.
+    """
+
+    step_factor: float = 0.5
+    batch_size: int = 4096
+    min_batches: int = 8
+    batches_per_superbatch: int = 8
+    residence_cap: float | None = None
+    max_steps: int = 2_000_000
+    min_visits: int = 10
+
+
+def batch_plan(parcels, settings=TrackSettings()):
+    """(starts, counts) of the batches, and the super-batch boundaries (list of slices)."""
+    parcels = int(parcels)
+    nb = max(min(settings.min_batches, parcels), -(-parcels // settings.batch_size))
+    counts = np.full(nb, parcels // nb, dtype=np.int64)
+    counts[: parcels % nb] += 1
+    starts = np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.int64)
+    per = settings.batches_per_superbatch
+    supers = [slice(b, min(b + per, nb)) for b in range(0, nb, per)]
+    return starts, counts, supers
+
+
+@dataclass
+class Sample:
+    """Result of one Lagrangian pass (or the average of several, :meth:`average`).
+
+    ``total`` is the flat result vector (layout.Layout), ``var`` the variance of each entry
+    from the batch spread and ``cov`` its covariance with the cell mass weight (cell part
+    only, for ratio statistics).  Derived fields are (nx, nr, nt) arrays in SI units.
+    """
+
+    mesh: object
+    spec: ParticleSpec
+    parcels: int
+    batches: int
+    total: np.ndarray
+    var: np.ndarray
+    cov: np.ndarray
+    wall_time: float = 0.0
+    passes: int = 1
+    _lay: Layout = field(default=None, repr=False)
+
+    def __post_init__(self):
+        nx, nr, nt = self.mesh.shape
+        self._lay = Layout(nx * nr * nt, nx * nt)
+
+    # ---------------------------------------------------------------- raw parts
+    def _cells(self, arr, a):
+        nx, nr, nt = self.mesh.shape
+        return arr[: nx * nr * nt * NACC].reshape(nx, nr, nt, NACC)[..., a]
+
+    def _acc(self, a):
+        return self._cells(self.total, a)
+
+    def _sum_stderr(self, a):
+        return np.sqrt(np.maximum(self._cells(self.var, a), 0.0))
+
+    def _ratio(self, a, w=A_WM):
+        num = self._acc(a)
+        den = self._acc(w)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), np.nan)
+
+    def _ratio_stderr(self, a):
+        """Delta-method standard error of total[a]/total[WM] from the batch (co)variances."""
+        r = self._ratio(a)
+        w = self._acc(A_WM)
+        va = self._cells(self.var, a)
+        vw = self._cells(self.var, A_WM)
+        cw = self._cells(self.cov, a)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            v = (va - 2.0 * r * cw + r * r * vw) / np.where(w > 0.0, w * w, np.nan)
+        return np.sqrt(np.maximum(v, 0.0))
+
+    @property
+    def volume(self):
+        return self.mesh.volume
+
+    # ---------------------------------------------------------------- cell fields
+    @property
+    def number_density(self):
+        """Particle number concentration [m-3]."""
+        return self._acc(A_WN) / self.volume
+
+    @property
+    def concentration(self):
+        """Particle mass concentration [kg m-3]."""
+        return self._acc(A_WM) / self.volume
+
+    @property
+    def concentration_stderr(self):
+        return self._sum_stderr(A_WM) / self.volume
+
+    @property
+    def mass_flux(self):
+        """Axial particle mass flux [kg m-2 s-1]."""
+        return self._acc(A_MU) / self.volume
+
+    @property
+    def mass_flux_stderr(self):
+        return self._sum_stderr(A_MU) / self.volume
+
+    def velocity(self, c):
+        """Mass-weighted mean particle velocity component c (0 x, 1 y, 2 z) [m s-1]; NaN if empty."""
+        return self._ratio(A_MU + c)
+
+    def velocity_stderr(self, c):
+        return self._ratio_stderr(A_MU + c)
+
+    def velocity_rms(self, c):
+        """Rms of particle velocity component c about its cell mean [m s-1]; NaN if empty."""
+        mean = self.velocity(c)
+        return np.sqrt(np.maximum(self._ratio(A_MUU + c) - mean * mean, 0.0))
+
+    def velocity_rms_stderr(self, c):
+        rms = self.velocity_rms(c)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(rms > 0.0, self._ratio_stderr(A_MUU + c) / (2.0 * np.where(rms > 0, rms, 1.0)),
+                            np.nan)
+
+    def momentum_source(self, c):
+        """Momentum source on the gas, component c [N m-3] (as computed, not relaxed)."""
+        return -self._acc(A_J + c) / self.volume
+
+    def momentum_source_stderr(self, c):
+        return self._sum_stderr(A_J + c) / self.volume
+
+    @property
+    def k_source(self):
+        """Turbulence source S_k = −(1/V) Σ Ṅ u′_F·J [W m-3]."""
+        return -self._acc(A_SK) / self.volume
+
+    @property
+    def k_source_stderr(self):
+        return self._sum_stderr(A_SK) / self.volume
+
+    def epsilon_source(self, k, epsilon):
+        """S_ε = C_ε3 (ε/k) S_k [W m-3 s-1] with the gas k, ε (nx, nr, nt)."""
+        return C_EPS3 * epsilon / k * self.k_source
+
+    @property
+    def visits(self):
+        return self._acc(A_VISITS)
+
+    def spin(self, c):
+        """Mean particle angular velocity component c [rad s-1]."""
+        return self._ratio(A_NW + c, A_WN)
+
+    def spin_rms(self, c):
+        mean = self.spin(c)
+        return np.sqrt(np.maximum(self._ratio(A_NWW + c, A_WN) - mean * mean, 0.0))
+
+    # ---------------------------------------------------------------- wall
+    def _wall(self, arr, a):
+        nx, _, nt = self.mesh.shape
+        o = self._lay.wall
+        return arr[o: o + nx * nt * NWALL].reshape(nx, nt, NWALL)[..., a]
+
+    @property
+    def wall_face_area(self):
+        return np.outer(self.mesh.dx, np.full(self.mesh.nt, self.mesh.radius * self.mesh.dtheta))
+
+    @property
+    def wall_collision_rate(self):
+        """Particle–wall impacts (rebounds) per wall area and time, (nx, nt) [m-2 s-1]."""
+        return self._wall(self.total, W_COUNT) / self.wall_face_area
+
+    @property
+    def wall_collision_rate_stderr(self):
+        return np.sqrt(np.maximum(self._wall(self.var, W_COUNT), 0.0)) / self.wall_face_area
+
+    @property
+    def wall_impact_angle_mean(self):
+        """Rate-weighted mean nominal impact angle per wall face [deg] (NaN: no impacts)."""
+        n = self._wall(self.total, W_COUNT)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(n > 0, self._wall(self.total, W_ANGLE) / n, np.nan)
+
+    @property
+    def wall_impact_speed_mean(self):
+        n = self._wall(self.total, W_COUNT)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(n > 0, self._wall(self.total, W_SPEED) / n, np.nan)
+
+    def _hist(self, off, n):
+        h = self.total[off: off + n]
+        s = h.sum()
+        return h / s if s > 0 else np.zeros(n)
+
+    @property
+    def impact_angle_pdf(self):
+        """(bin edges [deg], probability per bin) of the nominal wall-impact angle."""
+        return np.linspace(0.0, 90.0, N_ANGLE_BINS + 1), self._hist(self._lay.angle, N_ANGLE_BINS)
+
+    @property
+    def impact_speed_pdf(self):
+        """(bin edges [m s-1], probability per bin) of the wall-impact speed (last bin open)."""
+        edges = np.linspace(0.0, 2.0 * self.spec.injection_velocity, N_SPEED_BINS + 1)
+        return edges, self._hist(self._lay.speed, N_SPEED_BINS)
+
+    # ---------------------------------------------------------------- bookkeeping
+    @property
+    def budget(self):
+        """Rate-weighted totals [N or kg s-1 or kg]: momentum in/out, weight, collisions, impulse."""
+        b = self.total[self._lay.budget:]
+        v = lambda o: b[o: o + 3].copy()  # noqa: E731
+        return {"momentum_in": v(B_MOM_IN), "momentum_out": v(B_MOM_OUT), "weight": v(B_WEIGHT),
+                "wall_collisions": v(B_WALL), "particle_collisions": v(B_PP),
+                "inlet_reflections": v(B_INLET), "fluid_impulse": v(B_J),
+                "mass_in": b[B_MASS_IN], "mass_out": b[B_MASS_OUT], "mass_stuck": b[B_MASS_STUCK],
+                "mean_residence_time": b[B_RESIDENCE] / b[B_MASS_IN] if b[B_MASS_IN] > 0 else np.nan}
+
+    @property
+    def counts(self):
+        """Parcel fates and event counts (summed over the passes averaged)."""
+        c = self.total[self._lay.counts:] * self.passes
+        names = {C_INJECTED: "injected", C_EXITED: "exited", C_STUCK: "stuck", C_LOST: "lost",
+                 C_STEPS: "steps", C_REBOUNDS: "wall_rebounds", C_SLIDING: "wall_sliding",
+                 C_ROLLING: "wall_rolling", C_PP: "particle_collisions", C_INLET: "inlet_reflections"}
+        return {n: int(round(c[i])) for i, n in names.items()}
+
+    def cell_statistics(self, gas=None, min_visits=10):
+        """Per-cell statistics (ncell, NCS) the next pass's collision model uses.
+
+        Number density, mean and rms velocity, mean and rms spin, the mean collision frequency
+        (PHYSICS.md §7, for the step limit; with the Sommerfeld correlation R(St), St = τ_p/T_L
+        from the cell-mean slip and the gas k, ε when ``gas`` is given), and a flag for cells
+        with at least ``min_visits`` samples.
+        """
+        nx, nr, nt = self.mesh.shape
+        st = np.zeros((nx, nr, nt, NCS))
+        ok = (self.visits >= min_visits) & (self._acc(A_WM) > 0.0)
+        st[..., CS_N] = np.where(ok, self.number_density, 0.0)
+        for c in range(3):
+            st[..., CS_U + c] = np.where(ok, self.velocity(c), 0.0)
+            st[..., CS_RMS + c] = np.where(ok, self.velocity_rms(c), 0.0)
+            st[..., CS_WM + c] = np.where(ok, self.spin(c), 0.0)
+            st[..., CS_WRMS + c] = np.where(ok, self.spin_rms(c), 0.0)
+        sigma = np.sqrt(np.mean(st[..., CS_RMS:CS_RMS + 3] ** 2, axis=-1))
+        d = self.spec.diameter
+        corr = np.zeros((nx, nr, nt))
+        if gas is not None:
+            mu = gas.gas.viscosity
+            rho = gas.gas.density
+            slip = np.sqrt((gas.ux - st[..., CS_U]) ** 2 + (gas.uy - st[..., CS_U + 1]) ** 2
+                           + (gas.uz - st[..., CS_U + 2]) ** 2)
+            re_p = rho * d * slip / mu
+            f_d = np.where(re_p > 1000.0, 0.44 * re_p / 24.0, 1.0 + 0.15 * re_p**0.687)
+            tau_p = self.spec.density * d * d / (18.0 * mu * f_d)
+            t_l = C_T * (2.0 / 3.0) * gas.k / gas.epsilon
+            corr = np.exp(-0.55 * (tau_p / t_l) ** 0.4)
+        freq = np.empty((nx, nr, nt))
+        flat_n, flat_s, flat_c = st[..., CS_N].ravel(), sigma.ravel(), corr.ravel()
+        fr = freq.ravel()
+        for i in range(fr.size):
+            fr[i] = mean_collision_frequency(d, d, flat_n[i], flat_s[i], flat_s[i], flat_c[i])
+        st[..., CS_F] = freq
+        st[..., CS_OK] = ok.astype(float)
+        return np.ascontiguousarray(st.reshape(nx * nr * nt, NCS))
+
+    # ---------------------------------------------------------------- averaging
+    @classmethod
+    def average(cls, samples):
+        """Mean of several passes' samples; variances combine as Σ var / n²."""
+        samples = list(samples)
+        n = len(samples)
+        s0 = samples[0]
+        tot = sum(s.total for s in samples) / n
+        var = sum(s.var for s in samples) / n**2
+        cov = sum(s.cov for s in samples) / n**2
+        return cls(mesh=s0.mesh, spec=s0.spec, parcels=sum(s.parcels for s in samples),
+                   batches=sum(s.batches for s in samples), total=tot, var=var, cov=cov,
+                   wall_time=sum(s.wall_time for s in samples), passes=n)
+
+
+def parameters(spec, gas_props, mesh, settings=TrackSettings(), parcels=1, gravity=True):
+    """Runtime parameter vector (layout.P_*) of a pass."""
+    prm = np.zeros(NPRM)
+    area = math.pi * mesh.radius**2
+    mdot_p = spec.mass_loading * gas_props.density * spec.injection_velocity * area
+    prm[P_RHO_F] = gas_props.density
+    prm[P_MU] = gas_props.viscosity
+    prm[P_RHO_P] = spec.density
+    prm[P_DP] = spec.diameter
+    prm[P_NDOT] = mdot_p / (spec.mass * parcels)
+    prm[P_U0] = spec.injection_velocity
+    prm[P_INJ_RMS] = spec.injection_rms
+    prm[P_GRAV] = GRAVITY * (1.0 - gas_props.density / spec.density) if gravity else 0.0
+    prm[P_DGAMMA] = math.radians(spec.roughness_angle_std_deg)
+    prm[P_VMIN] = minimum_bounce_speed(spec.diameter, GRAVITY)
+    prm[P_STEP] = settings.step_factor
+    cap = settings.residence_cap
+    prm[P_TCAP] = cap if cap is not None else 50.0 * mesh.length / spec.injection_velocity
+    prm[P_MAXSTEPS] = settings.max_steps
+    prm[P_SPEEDMAX] = 2.0 * spec.injection_velocity
+    prm[P_MIN_VISITS] = settings.min_visits
+    return prm
+
+
+def track(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, pass_index=0,
+          stats=None, settings=TrackSettings(), table=None, superbatches=None):
+    """Run one Lagrangian pass; returns a :class:`Sample`.
+
+    mesh : rans.PipeMesh;  gas : rans.GasField (converged);  spec : ParticleSpec;
+    physics : PhysicsOptions (compile-time switches);  parcels : parcels in this pass;
+    seed, pass_index : random-stream key (every pass draws fresh noise);
+    stats : (ncell, NCS) cell statistics of the previous pass for inter-particle collisions
+    (None: no collisions in this pass);  table : a prebuilt FieldTable (else built from gas);
+    superbatches : indices of the super-batches to run (None: all; for distributed runs).
+    """
+    import time
+
+    t0 = time.perf_counter()
+    if table is None:
+        table = FieldTable.from_gas(mesh, gas)
+    nx, nr, nt = mesh.shape
+    ncell = nx * nr * nt
+    lay = Layout(ncell, nx * nt)
+    starts, counts, supers = batch_plan(parcels, settings)
+    use_pp = physics.inter_particle_collisions and stats is not None
+    if physics.inter_particle_collisions and not use_pp:
+        physics = PhysicsOptions(**{**physics.__dict__, "inter_particle_collisions": False})
+    if stats is None:
+        stats = np.zeros((ncell, NCS))
+    _, track_superbatch = make_tracker(physics)
+    prm = parameters(spec, gas.gas, mesh, settings, parcels, physics.gravity)
+    totals = np.zeros(lay.size)
+    squares = np.zeros(lay.size)
+    cross = np.zeros(ncell * NACC)
+    chosen = range(len(supers)) if superbatches is None else superbatches
+    for isb in chosen:
+        sl = supers[isb]
+        t_s = np.zeros(lay.size)
+        q_s = np.zeros(lay.size)
+        c_s = np.zeros(ncell * NACC)
+        track_superbatch(starts[sl], counts[sl], int(seed), int(pass_index), table.x_edges,
+                         table.r_edges, table.r_centres, nt, table.length, table.radius, table.nu,
+                         table.x_centres, table.values, table.axis, stats, prm, t_s, q_s, c_s, ncell)
+        totals += t_s
+        squares += q_s
+        cross += c_s
+    nb = len(starts)
+    if nb > 1:
+        var = nb / (nb - 1.0) * (squares - totals * totals / nb)
+        wm = totals[: ncell * NACC].reshape(ncell, NACC)[:, A_WM:A_WM + 1]
+        cov = (nb / (nb - 1.0) * (cross.reshape(ncell, NACC) - totals[: ncell * NACC].reshape(ncell, NACC)
+                                  * wm / nb)).ravel()
+    else:
+        var = np.full(lay.size, np.nan)
+        cov = np.full(ncell * NACC, np.nan)
+    return Sample(mesh=mesh, spec=spec, parcels=int(parcels), batches=nb, total=totals, var=var,
+                  cov=np.concatenate((cov, np.zeros(lay.size - cov.size))),
+                  wall_time=time.perf_counter() - t0)
