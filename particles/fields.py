@@ -1,7 +1,7 @@
 """Gas fields seen by the particles: a per-cell table and its interpolation to a point.
 
 ``FieldTable.from_gas(mesh, gas)`` packs, per cell, the mean velocity U (3), k, ε, the
-mean-flow vorticity ∇ × U (3) and ∇k (3) into one contiguous array ``values[nx, nr, nt, NF]``
+mean-flow vorticity ∇ × U (3) into one contiguous array ``values[nx, nr, nt, NT]``
 (gradients: axial by central differences, cross-section by the finite-volume gradient of
 ``rans.operators.Section``); ``axis[nx, NF]`` holds the ring-0 means, the value on the axis.
 
@@ -11,6 +11,8 @@ mean-flow vorticity ∇ × U (3) and ∇k (3) into one contiguous array ``values
 * in the cross-section bilinear in (r, θ) between the four surrounding cell centres;
 * inside the innermost ring (r below the ring-0 centre) linear in r between the axis value
   and the ring values, so the fields are single-valued and continuous through the axis;
+* ∇k (for the Langevin drift correction) is the exact gradient of the interpolated k, so
+  the drift is consistent with the σ² = 2k/3 the dispersion model actually sees;
 * inside the wall-function cell (beyond the wall-ring centre, distance y from the wall less
   than y_P) the log-law reconstruction of DESIGN.md / PHYSICS.md §6.2, with the wall-ring
   values at the particle's (x, θ):
@@ -37,14 +39,15 @@ from collisions.conf import JIT_FLAGS, KERNEL_FLAGS
 from rans import kepsilon as ke
 
 __all__ = ["FieldTable", "interpolate", "NF", "F_UX", "F_UY", "F_UZ", "F_K", "F_EPS",
-           "F_WX", "F_WY", "F_WZ", "F_DKX", "F_DKY", "F_DKZ", "viscous_edge_yplus"]
+           "F_WX", "F_WY", "F_WZ", "F_DKX", "F_DKY", "F_DKZ", "NT", "viscous_edge_yplus"]
 
 # field indices of the table (last axis)
 F_UX, F_UY, F_UZ = 0, 1, 2  # mean gas velocity [m s-1]
 F_K, F_EPS = 3, 4  # k [m2 s-2], epsilon [m2 s-3]
 F_WX, F_WY, F_WZ = 5, 6, 7  # vorticity of the mean flow, curl U [s-1]
-F_DKX, F_DKY, F_DKZ = 8, 9, 10  # grad k [m s-2]
-NF = 11
+F_DKX, F_DKY, F_DKZ = 8, 9, 10  # grad k [m s-2] (of the interpolated k; not stored in the table)
+NT = 8  # fields stored per cell in the table
+NF = 11  # fields returned by ``interpolate``
 
 
 def viscous_edge_yplus(kappa=ke.KAPPA, e_wall=ke.E_WALL):
@@ -86,9 +89,10 @@ class FieldTable:
         sec = mesh.geometry()
         ux, uy, uz, k, eps = (np.asarray(getattr(gas, n), dtype=np.float64).reshape(nx, nr, nt)
                               for n in ("ux", "uy", "uz", "k", "epsilon"))
-        # cross-section gradients (d/dz, d/dy) per station; velocities vanish at the wall
+        # vorticity from the cross-section gradients (d/dz, d/dy) per station (velocities vanish
+        # at the wall) and axial central differences
         g = {}
-        for name, phi, wall in (("ux", ux, 0.0), ("uy", uy, 0.0), ("uz", uz, 0.0), ("k", k, None)):
+        for name, phi, wall in (("ux", ux, 0.0), ("uy", uy, 0.0), ("uz", uz, 0.0)):
             dz = np.empty((nx, nr, nt))
             dy = np.empty((nx, nr, nt))
             for i in range(nx):
@@ -100,7 +104,7 @@ class FieldTable:
             else:
                 dx = np.zeros_like(phi)
             g[name] = (dx, dy, dz)
-        tab = np.empty((nx, nr, nt, NF))
+        tab = np.empty((nx, nr, nt, NT))
         tab[..., F_UX] = ux
         tab[..., F_UY] = uy
         tab[..., F_UZ] = uz
@@ -109,9 +113,6 @@ class FieldTable:
         tab[..., F_WX] = g["uz"][1] - g["uy"][2]  # d uz/dy - d uy/dz
         tab[..., F_WY] = g["ux"][2] - g["uz"][0]  # d ux/dz - d uz/dx
         tab[..., F_WZ] = g["uy"][0] - g["ux"][1]  # d uy/dx - d ux/dy
-        tab[..., F_DKX] = g["k"][0]
-        tab[..., F_DKY] = g["k"][1]
-        tab[..., F_DKZ] = g["k"][2]
         if not np.all(np.isfinite(tab)):
             raise ValueError("gas field has non-finite values; cannot track particles in it")
         if np.any(k <= 0.0) or np.any(eps <= 0.0):
@@ -169,7 +170,7 @@ def _blend_section(tab, i, j, k0, k1, wt, f, out, scale):
 def interpolate(x, y, z, tab, axis, xc, rc, radius, nu, out):
     """Gas fields at the point (x, y, z) [m] into ``out`` (NF,); see the module docstring.
 
-    tab (nx, nr, nt, NF), axis (nx, NF), xc (nx,) station centres (uniform), rc (nr,) ring
+    tab (nx, nr, nt, NT), axis (nx, NT), xc (nx,) station centres (uniform), rc (nr,) ring
     centres, radius [m], nu [m2 s-1].  Points beyond r = R are treated as on the wall ring.
     """
     nx = tab.shape[0]
@@ -204,29 +205,68 @@ def interpolate(x, y, z, tab, axis, xc, rc, radius, nu, out):
     k0 = int(kf) % nt
     k1 = (k0 + 1) % nt
     r = math.sqrt(y * y + z * z)
+    dwx = 0.0 if (nx == 1 or wx <= 0.0 or wx >= 1.0) else 1.0 / (xc[1] - xc[0])
+    dwt = nt / (2.0 * math.pi)  # d wt / d theta
     if r < rc[nr - 1]:
-        if r < rc[0]:
+        if r < rc[0]:  # between the axis and the ring-0 centres
             wr = r / rc[0]
-            for q in range(NF):
+            dwr = 1.0 / rc[0]
+            for q in range(NT):
                 out[q] = (1.0 - wr) * ((1.0 - wx) * axis[i0, q] + wx * axis[i1, q])
-            _blend_section(tab, i0, 0, k0, k1, wt, NF, out, wr * (1.0 - wx))
+            _blend_section(tab, i0, 0, k0, k1, wt, NT, out, wr * (1.0 - wx))
             if wx > 0.0:
-                _blend_section(tab, i1, 0, k0, k1, wt, NF, out, wr * wx)
-            return
-        lo = 0
-        hi = nr - 1
-        while hi - lo > 1:
-            mid = (lo + hi) >> 1
-            if rc[mid] <= r:
-                lo = mid
-            else:
-                hi = mid
-        wr = (r - rc[lo]) / (rc[lo + 1] - rc[lo])
-        _blend_section(tab, i0, lo, k0, k1, wt, NF, out, (1.0 - wr) * (1.0 - wx))
-        _blend_section(tab, i0, lo + 1, k0, k1, wt, NF, out, wr * (1.0 - wx))
-        if wx > 0.0:
-            _blend_section(tab, i1, lo, k0, k1, wt, NF, out, (1.0 - wr) * wx)
-            _blend_section(tab, i1, lo + 1, k0, k1, wt, NF, out, wr * wx)
+                _blend_section(tab, i1, 0, k0, k1, wt, NT, out, wr * wx)
+            ka0 = axis[i0, F_K]
+            ka1 = axis[i1, F_K]
+            jlo = 0
+            k_lo0 = ka0
+            k_lo1 = ka1
+            klo_t0 = 0.0  # theta derivative of the inner values (the axis value has none)
+            klo_t1 = 0.0
+            wr_for_t = wr
+        else:
+            lo = 0
+            hi = nr - 1
+            while hi - lo > 1:
+                mid = (lo + hi) >> 1
+                if rc[mid] <= r:
+                    lo = mid
+                else:
+                    hi = mid
+            wr = (r - rc[lo]) / (rc[lo + 1] - rc[lo])
+            dwr = 1.0 / (rc[lo + 1] - rc[lo])
+            _blend_section(tab, i0, lo, k0, k1, wt, NT, out, (1.0 - wr) * (1.0 - wx))
+            _blend_section(tab, i0, lo + 1, k0, k1, wt, NT, out, wr * (1.0 - wx))
+            if wx > 0.0:
+                _blend_section(tab, i1, lo, k0, k1, wt, NT, out, (1.0 - wr) * wx)
+                _blend_section(tab, i1, lo + 1, k0, k1, wt, NT, out, wr * wx)
+            k_lo0 = (1.0 - wt) * tab[i0, lo, k0, F_K] + wt * tab[i0, lo, k1, F_K]
+            k_lo1 = (1.0 - wt) * tab[i1, lo, k0, F_K] + wt * tab[i1, lo, k1, F_K]
+            klo_t0 = (tab[i0, lo, k1, F_K] - tab[i0, lo, k0, F_K]) * dwt
+            klo_t1 = (tab[i1, lo, k1, F_K] - tab[i1, lo, k0, F_K]) * dwt
+            jlo = lo + 1
+            wr_for_t = -1.0
+        # the outer ring of the radial interval (ring 0 for the axis region, else lo + 1)
+        k_hi0 = (1.0 - wt) * tab[i0, jlo, k0, F_K] + wt * tab[i0, jlo, k1, F_K]
+        k_hi1 = (1.0 - wt) * tab[i1, jlo, k0, F_K] + wt * tab[i1, jlo, k1, F_K]
+        khi_t0 = (tab[i0, jlo, k1, F_K] - tab[i0, jlo, k0, F_K]) * dwt
+        khi_t1 = (tab[i1, jlo, k1, F_K] - tab[i1, jlo, k0, F_K]) * dwt
+        kr = ((1.0 - wx) * (k_hi0 - k_lo0) + wx * (k_hi1 - k_lo1)) * dwr
+        kx = (((1.0 - wr) * k_lo1 + wr * k_hi1) - ((1.0 - wr) * k_lo0 + wr * k_hi0)) * dwx
+        kt = (1.0 - wx) * ((1.0 - wr) * klo_t0 + wr * khi_t0) + wx * ((1.0 - wr) * klo_t1 + wr * khi_t1)
+        if wr_for_t >= 0.0:  # axis region: (1/r) dk/dtheta = (1/rc0) d k_ring0/dtheta, finite at r = 0
+            kt_over_r = ((1.0 - wx) * khi_t0 + wx * khi_t1) / rc[0]
+        else:
+            kt_over_r = kt / r
+        if r > 0.0:
+            st = y / r
+            ct = z / r
+        else:
+            st = 0.0
+            ct = 1.0
+        out[F_DKX] = kx
+        out[F_DKY] = st * kr + ct * kt_over_r
+        out[F_DKZ] = ct * kr - st * kt_over_r
         return
     # wall-function cell: wall-ring values at (x, theta), then the log-law reconstruction
     j = nr - 1

@@ -13,10 +13,12 @@ Per particle step (PHYSICS.md §2.3):
    the crossing time uses the axial cell length and the *ring thickness*, never the arc
    length, so the small sectors at the axis do not force small steps) or
    c · min(τ_p, T_L, 1/f_coll) (``"paper"``);
-3. forces frozen over the step: drag (Schiller–Naumann), reduced gravity, Saffman–Mei and
-   Magnus lift; the velocity and position advanced with the exact solution of
-   du/dt = (u_F − u)/τ_p + a, stable for any Δt/τ_p; the spin likewise relaxes toward
-   ½ ∇×U with the torque's time scale τ_r;
+3. force coefficients frozen over the step: drag (Schiller–Naumann), reduced gravity g′,
+   Saffman–Mei and Magnus lift.  Both lifts are linear in the slip, a_L = b × (u_F − u),
+   so the velocity and position are advanced with the exact solution of
+   du/dt = (u_F − u)/τ_p + b × (u_F − u) + g′ (an exponential decay combined with a rotation
+   about b), stable for any Δt/τ_p: a lift does not outlive the slip that causes it.  The
+   spin likewise relaxes toward ½ ∇×U with the torque's time scale τ_r;
 4. a step that would end beyond the wall contact radius R − r_p is shortened to the
    straight-line contact time (if at least 5 % of the step remains; otherwise the centre
    is put on the contact radius), and the rough-wall collision follows;
@@ -24,7 +26,7 @@ Per particle step (PHYSICS.md §2.3):
    sampled (occupancy, mass flux, velocity moments, spin moments, the exact fluid impulse
    J = m[(u^{n+1} − u^n) − g′Δt] and u′_F·J);
 6. fields at x_{n+1}; the fluid velocity seen is updated by the Langevin model of
-   Sommerfeld et al. (1993) with R_P = R_L(Δt) R_E(Δr), Δr = (u_F − u_p)Δt, plus the
+   Sommerfeld et al. (1993) with R_P = R_L(Δt) R_E(Δr), Δr = ∫(u_F − u_p)dt over the step, plus the
    (1 − R_P) T_L ∂⟨u′_i u′_j⟩/∂x_j drift correction (PHYSICS.md §2);
 7. wall collision (collisions.wall, which also mirrors u′_n) and the stochastic
    inter-particle collision against a fictitious partner drawn from the previous pass's
@@ -70,6 +72,7 @@ __all__ = ["PhysicsOptions", "make_motion", "make_tracker", "walk_segment", "MAX
 
 C_T = 0.24  # T_L = C_T σ²/ε (Sommerfeld 2001; PHYSICS.md §2.1, §12)
 C_L = 3.0  # L_E = C_L T_L σ
+NSTATE = 19  # per-parcel final state columns, see make_tracker
 MAX_SEGMENTS = 512  # cells one step may cross (a step crosses ~1; the rest goes to the last cell)
 _WALL_REDO = 0.05  # shorten a wall-crossing step only if this fraction of it remains before contact
 _DEG = 180.0 / math.pi
@@ -239,11 +242,12 @@ def make_motion(options=PhysicsOptions()):
         slip = math.sqrt(rx * rx + ry * ry + rz * rz)
         re_p = rho_f * d * slip / mu
         tau = fl.response_time(rho_p, d, mu, fl.schiller_naumann_drag_factor(re_p))
-        ax = 0.0
-        ay = 0.0
-        az = 0.0
-        if gravity:
-            ay = -prm[P_GRAV]
+        gy = -prm[P_GRAV] if gravity else 0.0
+        # lift accelerations are linear in the slip: a_L = b x (u_F - u) with
+        # b = c_M Omega - c_S omega_F (Saffman: c_S (u_rel x omega_F); Magnus: c_M (Omega x u_rel))
+        bx = 0.0
+        by = 0.0
+        bz = 0.0
         wfx = vort[0]
         wfy = vort[1]
         wfz = vort[2]
@@ -252,9 +256,9 @@ def make_motion(options=PhysicsOptions()):
             if wf > 0.0 and re_p > 0.0:
                 re_s = rho_f * d * d * wf / mu
                 c = 0.125 * math.pi * rho_f * d * d * d * fl.saffman_mei_lift_coefficient(re_p, re_s) / m
-                ax += c * (ry * wfz - rz * wfy)
-                ay += c * (rz * wfx - rx * wfz)
-                az += c * (rx * wfy - ry * wfx)
+                bx -= c * wfx
+                by -= c * wfy
+                bz -= c * wfz
         if magnus:
             ox = 0.5 * wfx - omega[0]
             oy = 0.5 * wfy - omega[1]
@@ -267,20 +271,71 @@ def make_motion(options=PhysicsOptions()):
                 else:
                     clr = fl.oesterle_bui_dinh_1998_lift_coefficient(re_p, re_r)
                 c = 0.125 * math.pi * rho_f * d * d * clr * slip / (om * m)
-                ax += c * (oy * rz - oz * ry)
-                ay += c * (oz * rx - ox * rz)
-                az += c * (ox * ry - oy * rx)
-        # exact solution with frozen u_F, a, tau: u -> u_inf = u_F + a tau
-        e1 = -math.expm1(-dt / tau)  # 1 - exp(-dt/tau), accurate for small dt/tau
-        for q in range(3):
-            aq = ax if q == 0 else (ay if q == 1 else az)
-            vinf = uf[q] + aq * tau
-            dv = (vinf - vel[q]) * e1
-            pos[q] += vinf * dt - dv * tau
-            vel[q] += dv
-            impulse[q] = m * dv
-        if gravity:
-            impulse[1] += m * prm[P_GRAV] * dt
+                bx += c * ox
+                by += c * oy
+                bz += c * oz
+        # exact solution of dw/dt = -w/tau - b x w + g', w = u - u_F (u_F, tau, b frozen):
+        # w(t) = w_inf + exp(-t/tau) R(t) (w0 - w_inf), R the rotation by -|b| t about b
+        a = 1.0 / tau
+        bb = bx * bx + by * by + bz * bz
+        # w_inf solves (a I + [b]x) w = g' = (0, gy, 0)
+        den = a * (a * a + bb)
+        bg = by * gy
+        wix = (bg * bx - a * (-bz * gy)) / den
+        wiy = (a * a * gy + bg * by) / den
+        wiz = (bg * bz - a * (bx * gy)) / den
+        v0x = vel[0] - uf[0] - wix
+        v0y = vel[1] - uf[1] - wiy
+        v0z = vel[2] - uf[2] - wiz
+        e1 = -math.expm1(-dt * a)  # 1 - exp(-dt/tau), accurate for small dt/tau
+        ee = 1.0 - e1
+        beta = math.sqrt(bb)
+        if beta * dt > 1e-14:
+            hx = bx / beta
+            hy = by / beta
+            hz = bz / beta
+            pd = hx * v0x + hy * v0y + hz * v0z
+            px = pd * hx
+            py = pd * hy
+            pz = pd * hz
+            qx = v0x - px
+            qy = v0y - py
+            qz = v0z - pz
+            cx = hy * v0z - hz * v0y
+            cy = hz * v0x - hx * v0z
+            cz = hx * v0y - hy * v0x
+            co = math.cos(beta * dt)
+            si = math.sin(beta * dt)
+            nrm = a * a + bb
+            ic = (a * (1.0 - ee * co) + beta * ee * si) / nrm
+            is_ = (beta * (1.0 - ee * co) - a * ee * si) / nrm
+            ip = e1 * tau
+            w1x = wix + ee * (px + qx * co - cx * si)
+            w1y = wiy + ee * (py + qy * co - cy * si)
+            w1z = wiz + ee * (pz + qz * co - cz * si)
+            sx = px * ip + qx * ic - cx * is_
+            sy = py * ip + qy * ic - cy * is_
+            sz = pz * ip + qz * ic - cz * is_
+        else:
+            w1x = wix + ee * v0x
+            w1y = wiy + ee * v0y
+            w1z = wiz + ee * v0z
+            ip = e1 * tau
+            sx = v0x * ip
+            sy = v0y * ip
+            sz = v0z * ip
+        pos[0] += (uf[0] + wix) * dt + sx
+        pos[1] += (uf[1] + wiy) * dt + sy
+        pos[2] += (uf[2] + wiz) * dt + sz
+        n0 = uf[0] + w1x
+        n1 = uf[1] + w1y
+        n2 = uf[2] + w1z
+        impulse[0] = m * (n0 - vel[0])
+        impulse[1] = m * (n1 - vel[1] - gy * dt)
+        impulse[2] = m * (n2 - vel[2])
+        vel[0] = n0
+        vel[1] = n1
+        vel[2] = n2
         if rotation:
             ox = 0.5 * vort[0] - omega[0]
             oy = 0.5 * vort[1] - omega[1]
@@ -307,14 +362,16 @@ def make_tracker(options=PhysicsOptions()):
 
     tracks parcels first … first+count−1 (global ids key their random streams) and adds
     their samples to the flat vector ``out`` (layout.Layout); ``state`` (count, 16) receives
-    the final parcel state [pos(3), vel(3), omega(3), u′(3), t_res, steps, status, diameter].
+    the final parcel state (NSTATE columns) [pos(3), vel(3), omega(3), u′(3), t_res, steps,
+    status, diameter, injection position(3)].
 
-        track_superbatch(starts, counts, ..., totals, squares, cross, lay)
+        track_superbatch(starts, counts, ..., totals, squares, cross, ncell, states)
 
     tracks the batches of one super-batch, in parallel (numba threads), each into its own
     scratch vector, and folds them *in batch order* into totals (Σ_b s_b), squares
     (Σ_b s_b²) and cross (Σ_b s_b · s_b[mass weight], cell accumulators only), so the result
-    does not depend on the thread count.
+    does not depend on the thread count; ``states`` (parcels of the super-batch, NSTATE)
+    receives the final parcel states.
     """
     advance = make_motion(options)
     wall_collision = make_wall_collision(options.wall)
@@ -381,6 +438,9 @@ def make_tracker(options=PhysicsOptions()):
             pos[0] = 0.0
             pos[1] = rr * math.sin(th)
             pos[2] = rr * math.cos(th)
+            x_in = pos[0]
+            y_in = pos[1]
+            z_in = pos[2]
             g0, g1 = next_normal_pair(rng_inj)
             g2, g3 = next_normal_pair(rng_inj)
             vel[0] = prm[P_U0] + prm[P_INJ_RMS] * g0
@@ -448,10 +508,11 @@ def make_tracker(options=PhysicsOptions()):
                 wsx = omega[0]
                 wsy = omega[1]
                 wsz = omega[2]
-                rlx = uf[0] - vel[0]
-                rly = uf[1] - vel[1]
-                rlz = uf[2] - vel[2]
                 advance(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
+                # separation from the fluid element over the step, Δr = ∫(u_F − u_p)dt (PHYSICS.md §2.2)
+                drx = uf[0] * dt - (pos[0] - saved[0])
+                dry = uf[1] * dt - (pos[1] - saved[1])
+                drz = uf[2] * dt - (pos[2] - saved[2])
                 hit_wall = False
                 r1 = math.sqrt(pos[1] * pos[1] + pos[2] * pos[2])
                 if r1 > r_contact:
@@ -553,9 +614,6 @@ def make_tracker(options=PhysicsOptions()):
                     sign = math.sqrt(sig2n)
                     t_ln = C_T * sig2n / dvals[F_EPS]
                     r_l = math.exp(-dt / t_ln)
-                    drx = rlx * dt
-                    dry = rly * dt
-                    drz = rlz * dt
                     dr2 = drx * drx + dry * dry + drz * drz
                     z0, z1 = next_normal_pair(rng_disp)
                     z2, _z3 = next_normal_pair(rng_disp)
@@ -667,24 +725,25 @@ def make_tracker(options=PhysicsOptions()):
             state[q, 13] = steps
             state[q, 14] = status
             state[q, 15] = d
+            state[q, 16] = x_in
+            state[q, 17] = y_in
+            state[q, 18] = z_in
 
     @njit(parallel=True, cache=True)
     def track_superbatch(starts, counts, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
-                         x_centres, tab, axis, stats, prm, totals, squares, cross, n_acc_cells):
+                         x_centres, tab, axis, stats, prm, totals, squares, cross, n_acc_cells,
+                         states):
         nb = starts.shape[0]
         size = totals.shape[0]
         width = min(numba.get_num_threads(), nb)
         scratch = np.empty((width, size))
-        cmax = 0
-        for b in range(nb):
-            cmax = max(cmax, counts[b])
-        states = np.empty((width, cmax, 16))
         for b0 in range(0, nb, width):
             nin = min(width, nb - b0)
             for s in prange(nin):
                 scratch[s, :] = 0.0
                 track_batch(starts[b0 + s], counts[b0 + s], seed, pass_, x_edges, r_edges, rc, nt,
-                            length, radius, nu, x_centres, tab, axis, stats, prm, scratch[s], states[s])
+                            length, radius, nu, x_centres, tab, axis, stats, prm, scratch[s],
+                            states[starts[b0 + s] - starts[0]:starts[b0 + s] - starts[0] + counts[b0 + s]])
             for s in range(nin):  # fold in batch order: independent of the thread count
                 sc = scratch[s]
                 for a in range(size):

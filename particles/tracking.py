@@ -26,7 +26,7 @@ from collisions.wall import minimum_bounce_speed
 
 from . import forces as fl
 from .fields import FieldTable
-from .kernel import C_T, PhysicsOptions, make_tracker
+from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker
 from .layout import (A_J, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP, B_RESIDENCE,
                      B_WALL, B_WEIGHT, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP, C_REBOUNDS,
@@ -112,6 +112,7 @@ class Sample:
     cov: np.ndarray
     wall_time: float = 0.0
     passes: int = 1
+    states: np.ndarray = field(default=None, repr=False)
     _lay: Layout = field(default=None, repr=False)
 
     def __post_init__(self):
@@ -372,7 +373,8 @@ def parameters(spec, gas_props, mesh, settings=TrackSettings(), parcels=1, gravi
 
 
 def track(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, pass_index=0,
-          stats=None, settings=TrackSettings(), table=None, superbatches=None):
+          stats=None, settings=TrackSettings(), table=None, superbatches=None,
+          keep_states=False):
     """Run one Lagrangian pass; returns a :class:`Sample`.
 
     mesh : rans.PipeMesh;  gas : rans.GasField (converged);  spec : ParticleSpec;
@@ -380,7 +382,8 @@ def track(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, pass_in
     seed, pass_index : random-stream key (every pass draws fresh noise);
     stats : (ncell, NCS) cell statistics of the previous pass for inter-particle collisions
     (None: no collisions in this pass);  table : a prebuilt FieldTable (else built from gas);
-    superbatches : indices of the super-batches to run (None: all; for distributed runs).
+    superbatches : indices of the super-batches to run (None: all; for distributed runs);
+    keep_states : keep the final parcel states (parcels, kernel.NSTATE) in ``Sample.states``.
     """
     import time
 
@@ -401,15 +404,20 @@ def track(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, pass_in
     totals = np.zeros(lay.size)
     squares = np.zeros(lay.size)
     cross = np.zeros(ncell * NACC)
+    states = []
     chosen = range(len(supers)) if superbatches is None else superbatches
     for isb in chosen:
         sl = supers[isb]
         t_s = np.zeros(lay.size)
         q_s = np.zeros(lay.size)
         c_s = np.zeros(ncell * NACC)
+        st_s = np.empty((int(counts[sl].sum()), NSTATE))
         track_superbatch(starts[sl], counts[sl], int(seed), int(pass_index), table.x_edges,
                          table.r_edges, table.r_centres, nt, table.length, table.radius, table.nu,
-                         table.x_centres, table.values, table.axis, stats, prm, t_s, q_s, c_s, ncell)
+                         table.x_centres, table.values, table.axis, stats, prm, t_s, q_s, c_s, ncell,
+                         st_s)
+        if keep_states:
+            states.append(st_s)
         totals += t_s
         squares += q_s
         cross += c_s
@@ -424,4 +432,5 @@ def track(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, pass_in
         cov = np.full(ncell * NACC, np.nan)
     return Sample(mesh=mesh, spec=spec, parcels=int(parcels), batches=nb, total=totals, var=var,
                   cov=np.concatenate((cov, np.zeros(lay.size - cov.size))),
-                  wall_time=time.perf_counter() - t0)
+                  wall_time=time.perf_counter() - t0,
+                  states=np.concatenate(states) if keep_states else None)
