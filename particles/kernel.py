@@ -42,12 +42,15 @@ Collision velocity jumps are not part of J (DESIGN.md), so the momentum budget
 from __future__ import annotations
 
 import math
+import types
+import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numba
 import numpy as np
 from numba import njit, prange
+from numba.core.errors import NumbaWarning
 
 from collisions.conf import JIT_FLAGS, KERNEL_FLAGS
 from collisions.interparticle import InterparticleOptions, make_interparticle_collision
@@ -69,6 +72,12 @@ from .layout import (A_J, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, 
                      S_STUCK, W_ANGLE, W_COUNT, W_SPEED)
 
 __all__ = ["PhysicsOptions", "make_motion", "make_tracker", "walk_segment", "MAX_SEGMENTS"]
+
+# The parallel super-batch driver calls the (cached) batch kernel inside prange; numba cannot
+# cache such a parallel function ("dynamic globals"), so it is compiled once per process and
+# option set (about 2–3 s); everything it calls is cached.  The warning says only that.
+warnings.filterwarnings("ignore", message='Cannot cache compiled function "track_superbatch"',
+                        category=NumbaWarning)
 
 C_T = 0.24  # T_L = C_T σ²/ε (Sommerfeld 2001; PHYSICS.md §2.1, §12)
 C_L = 3.0  # L_E = C_L T_L σ
@@ -353,6 +362,23 @@ def make_motion(options=PhysicsOptions()):
 
 
 # ---------------------------------------------------------------------------- tracker
+def _with_globals(fn, **names):
+    """Copy of the closure ``fn`` whose global namespace also holds ``names``.
+
+    Sub-kernels (numba dispatchers) reach the tracking kernels as globals rather than closure
+    cells: numba's on-disk cache key hashes the closure cells, and a pickled dispatcher differs
+    from process to process, which would defeat the cache.  The cells keep the plain option
+    values (and ``repr(options)``), so each option set still gets its own cache entry.
+    """
+    g = dict(fn.__globals__)
+    g.update(names)
+    new = types.FunctionType(fn.__code__, g, fn.__name__, fn.__defaults__, fn.__closure__)
+    new.__qualname__ = fn.__qualname__
+    new.__module__ = fn.__module__
+    new.__doc__ = fn.__doc__
+    return new
+
+
 @lru_cache(maxsize=None)
 def make_tracker(options=PhysicsOptions()):
     """Build ``track_batch`` and ``track_superbatch`` for ``options`` (memoised).
@@ -383,9 +409,12 @@ def make_tracker(options=PhysicsOptions()):
     rotation = options.rotation
     gravity = options.gravity
 
-    @njit(**JIT_FLAGS)
+    key = repr(options)  # a closure cell: numba's cache key then differs per option set
+
     def track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                     x_centres, tab, axis, stats, prm, out, state):
+        if len(key) == 0:  # never true; keeps ``key`` in the closure (cache key)
+            return
         nx = x_edges.shape[0] - 1
         nr = r_edges.shape[0] - 1
         ncell = nx * nr * nt
@@ -508,7 +537,7 @@ def make_tracker(options=PhysicsOptions()):
                 wsx = omega[0]
                 wsy = omega[1]
                 wsz = omega[2]
-                advance(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
+                _ADVANCE(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
                 # separation from the fluid element over the step, Δr = ∫(u_F − u_p)dt (PHYSICS.md §2.2)
                 drx = uf[0] * dt - (pos[0] - saved[0])
                 dry = uf[1] * dt - (pos[1] - saved[1])
@@ -535,7 +564,7 @@ def make_tracker(options=PhysicsOptions()):
                             omega[0] = wsx
                             omega[1] = wsy
                             omega[2] = wsz
-                        advance(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
+                        _ADVANCE(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
                         r1 = math.sqrt(pos[1] * pos[1] + pos[2] * pos[2])
                     if r1 > r_contact:
                         f = r_contact / r1
@@ -610,9 +639,10 @@ def make_tracker(options=PhysicsOptions()):
                 # ---- fields at x_{n+1}; Langevin update of the fluid velocity seen
                 interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, radius, nu, dvals)
                 if langevin:
-                    sig2n = 2.0 * dvals[F_K] / 3.0
+                    src = dvals  # k, eps and grad k at the new position (PHYSICS.md §2.1)
+                    sig2n = 2.0 * src[F_K] / 3.0
                     sign = math.sqrt(sig2n)
-                    t_ln = C_T * sig2n / dvals[F_EPS]
+                    t_ln = C_T * sig2n / src[F_EPS]
                     r_l = math.exp(-dt / t_ln)
                     dr2 = drx * drx + dry * dry + drz * drz
                     z0, z1 = next_normal_pair(rng_disp)
@@ -635,7 +665,7 @@ def make_tracker(options=PhysicsOptions()):
                         zc = z0 if c == 0 else (z1 if c == 1 else z2)
                         un = rp * useen[c] + sign * math.sqrt(max(0.0, 1.0 - rp * rp)) * zc
                         if drift:
-                            un += (1.0 - rp) * t_ln * (2.0 / 3.0) * dvals[F_DKX + c]
+                            un += (1.0 - rp) * t_ln * (2.0 / 3.0) * src[F_DKX + c]
                         useen[c] = un
                 for qq in range(NF):
                     fvals[qq] = dvals[qq]
@@ -645,7 +675,7 @@ def make_tracker(options=PhysicsOptions()):
                     rw = math.sqrt(pos[1] * pos[1] + pos[2] * pos[2])
                     vn = -(vel[1] * pos[1] + vel[2] * pos[2]) / rw if rw > 0.0 else 0.0
                     dv[:] = 0.0
-                    code = wall_collision(pos, vel, omega, useen, dv, r_p, radius, prm[P_DGAMMA],
+                    code = _WALL(pos, vel, omega, useen, dv, r_p, radius, prm[P_DGAMMA],
                                           prm[P_VMIN], rng_wall)
                     if code == WALL_REBOUND:
                         out[off_cnt + C_REBOUNDS] += 1.0
@@ -688,7 +718,7 @@ def make_tracker(options=PhysicsOptions()):
                                                      fl.schiller_naumann_drag_factor(re_p))
                             t_lc = C_T * (2.0 * fvals[F_K] / 3.0) / fvals[F_EPS]
                             dv[:] = 0.0
-                            code = pp_collision(vel, omega, d, mean_own, d, mean_own, rms, wmean, wrms,
+                            code = _PP(vel, omega, d, mean_own, d, mean_own, rms, wmean, wrms,
                                                 stats[cell, CS_N], tau_p / t_lc, dt, rng_pp, dv, partner)
                             if code > 0:
                                 out[off_cnt + C_PP] += 1.0
@@ -729,10 +759,14 @@ def make_tracker(options=PhysicsOptions()):
             state[q, 17] = y_in
             state[q, 18] = z_in
 
-    @njit(parallel=True, cache=True)
+    track_batch = njit(**JIT_FLAGS)(_with_globals(track_batch, _ADVANCE=advance, _WALL=wall_collision,
+                                                  _PP=pp_collision))
+
     def track_superbatch(starts, counts, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                          x_centres, tab, axis, stats, prm, totals, squares, cross, n_acc_cells,
                          states):
+        if len(key) == 0:
+            return
         nb = starts.shape[0]
         size = totals.shape[0]
         width = min(numba.get_num_threads(), nb)
@@ -741,9 +775,9 @@ def make_tracker(options=PhysicsOptions()):
             nin = min(width, nb - b0)
             for s in prange(nin):
                 scratch[s, :] = 0.0
-                track_batch(starts[b0 + s], counts[b0 + s], seed, pass_, x_edges, r_edges, rc, nt,
-                            length, radius, nu, x_centres, tab, axis, stats, prm, scratch[s],
-                            states[starts[b0 + s] - starts[0]:starts[b0 + s] - starts[0] + counts[b0 + s]])
+                _TRACK_BATCH(starts[b0 + s], counts[b0 + s], seed, pass_, x_edges, r_edges, rc, nt,
+                             length, radius, nu, x_centres, tab, axis, stats, prm, scratch[s],
+                             states[starts[b0 + s] - starts[0]:starts[b0 + s] - starts[0] + counts[b0 + s]])
             for s in range(nin):  # fold in batch order: independent of the thread count
                 sc = scratch[s]
                 for a in range(size):
@@ -756,4 +790,6 @@ def make_tracker(options=PhysicsOptions()):
                         for a in range(NACC):
                             cross[c * NACC + a] += sc[c * NACC + a] * wm
 
+    track_superbatch = njit(parallel=True, cache=True)(
+        _with_globals(track_superbatch, _TRACK_BATCH=track_batch))
     return track_batch, track_superbatch

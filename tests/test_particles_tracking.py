@@ -1,0 +1,192 @@
+"""The Lagrangian pass: geometry, interpolation, bookkeeping, momentum budget, determinism."""
+
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from particles import FieldTable, ParticleSpec, PhysicsOptions, TrackSettings, track
+from particles.fields import F_EPS, F_K, F_UX, F_WX, F_WZ, YSTAR_VISCOUS
+from particles.kernel import MAX_SEGMENTS, walk_segment
+from particles.layout import A_J, A_SK
+from rans import PipeMesh, locate_cell
+from rans import kepsilon as ke
+
+from .particle_support import AIR, periodic_pipe
+
+BASE = ParticleSpec(200e-6, 1020.0, 2.2, 10.0, 0.5, 1.5)  # Tsuji-Morikawa base particles
+
+
+# ------------------------------------------------------------------ geometry
+def test_segment_walk_splits_by_time_fraction_into_the_right_cells():
+    mesh = PipeMesh.build(0.0305, 0.1, axial_cells=10, radial_cells=8, azimuthal_cells=16)
+    rng = np.random.default_rng(3)
+    cells = np.empty(MAX_SEGMENTS, dtype=np.int64)
+    fracs = np.empty(MAX_SEGMENTS)
+    nr, nt = mesh.nr, mesh.nt
+    rmax = 0.999 * mesh.radius
+    for _ in range(2000):
+        p0 = np.array([rng.uniform(0, 0.1), *(rmax * np.sqrt(rng.uniform()) * np.array(
+            [math.sin(t := rng.uniform(0, 2 * math.pi)), math.cos(t)]))])
+        p1 = np.array([rng.uniform(0, 0.1), *(rmax * np.sqrt(rng.uniform()) * np.array(
+            [math.sin(t := rng.uniform(0, 2 * math.pi)), math.cos(t)]))])
+        d = p1 - p0
+        i, j, k = locate_cell(*p0, mesh.length, mesh.nx, mesh.r_edges, nt)
+        n, end = walk_segment(*p0, *d, i, j, k, mesh.x_edges, mesh.r_edges, nt, cells, fracs)
+        assert end == 0
+        assert fracs[:n].sum() == pytest.approx(1.0, abs=1e-12)
+        s = 0.0
+        for q in range(n):  # the midpoint of each piece lies in the cell it is credited to
+            if fracs[q] > 1e-9:
+                mid = p0 + (s + 0.5 * fracs[q]) * d
+                ci, cj, ck = locate_cell(*mid, mesh.length, mesh.nx, mesh.r_edges, nt)
+                assert cells[q] == (ci * nr + cj) * nt + ck
+            s += fracs[q]
+
+
+def test_segment_walk_stops_at_the_outlet_plane():
+    mesh = PipeMesh.build(0.0305, 0.1, axial_cells=10, radial_cells=8, azimuthal_cells=16)
+    cells = np.empty(MAX_SEGMENTS, dtype=np.int64)
+    fracs = np.empty(MAX_SEGMENTS)
+    n, end = walk_segment(0.095, 0.0, 0.001, 0.01, 0.0, 0.0, 9, 0, 0, mesh.x_edges, mesh.r_edges,
+                          mesh.nt, cells, fracs)
+    assert end == 1 and fracs[:n].sum() == pytest.approx(0.5)
+
+
+# ------------------------------------------------------------------ interpolation
+def test_fields_are_continuous_through_the_axis_and_exact_at_cell_centres():
+    mesh, gas = periodic_pipe()
+    tab = FieldTable.from_gas(mesh, gas)
+    j, k = 5, 7
+    at = tab.at(0.5, mesh.y[j, k], mesh.z[j, k])
+    assert at[F_UX] == pytest.approx(gas.ux[0, j, k], rel=1e-12)
+    assert at[F_K] == pytest.approx(gas.k[0, j, k], rel=1e-12)
+    a = tab.at(0.5, 1e-9, 0.0)
+    b = tab.at(0.5, -1e-9, 0.0)
+    c = tab.at(0.5, 0.0, 0.0)
+    assert a[:F_WX] == pytest.approx(c[:F_WX], rel=1e-6) and b[:F_WX] == pytest.approx(c[:F_WX], rel=1e-6)
+    assert c[F_UX] == pytest.approx(gas.ux[0, 0].mean(), rel=1e-12)
+
+
+def test_wall_cell_fields_follow_the_log_law_not_a_linear_ramp():
+    mesh, gas = periodic_pipe()
+    tab = FieldTable.from_gas(mesh, gas)
+    k_sector = 10
+    theta = mesh.theta[k_sector]
+    u_p, k_p, eps_p = gas.ux[0, -1, k_sector], gas.k[0, -1, k_sector], gas.epsilon[0, -1, k_sector]
+    y_p = mesh.radius - mesh.r[-1]
+    nu = AIR.kinematic_viscosity
+    u_star = ke.C_MU**0.25 * math.sqrt(k_p)
+    for y in (0.8 * y_p, 0.5 * y_p):
+        r = mesh.radius - y
+        f = tab.at(0.5, r * math.sin(theta), r * math.cos(theta))
+        expected = u_p * math.log(ke.E_WALL * u_star * y / nu) / math.log(ke.E_WALL * u_star * y_p / nu)
+        assert u_star * y / nu > YSTAR_VISCOUS
+        assert f[F_UX] == pytest.approx(expected, rel=1e-9)
+        assert f[F_K] == pytest.approx(k_p, rel=1e-12)
+        assert f[F_EPS] == pytest.approx(eps_p * y_p / y, rel=1e-12)
+        # |curl U| = dU/dy = u_P / (y ln(E y*_P)) (azimuthal vorticity at the wall)
+        dudy = u_p / (y * math.log(ke.E_WALL * u_star * y_p / nu))
+        assert math.hypot(f[F_WX + 1], f[F_WZ]) == pytest.approx(dudy, rel=1e-9)
+        assert f[F_UX] > u_p * (y / y_p)  # well above a linear interpolation to zero
+    # in the viscous sublayer (y* < 11.53) the profile is u+ = y+ and eps keeps its edge value
+    y = 0.5 * YSTAR_VISCOUS * nu / u_star
+    r = mesh.radius - y
+    f = tab.at(0.5, r * math.sin(theta), r * math.cos(theta))
+    assert f[F_UX] == pytest.approx(u_p * (u_star * y / nu) / math.log(ke.E_WALL * u_star * y_p / nu)
+                                    * ke.KAPPA, rel=1e-9)
+    assert f[F_EPS] == pytest.approx(eps_p * y_p / (2.0 * y), rel=1e-12)
+
+
+# ------------------------------------------------------------------ passes
+@pytest.fixture(scope="module")
+def base_passes():
+    mesh, gas = periodic_pipe()
+    first = track(mesh, gas, BASE, PhysicsOptions(), parcels=3000, seed=7, pass_index=0)
+    stats = first.cell_statistics(gas)
+    second = track(mesh, gas, BASE, PhysicsOptions(), parcels=3000, seed=7, pass_index=1,
+                   stats=stats, keep_states=True)
+    return mesh, gas, first, second, stats
+
+
+def test_every_parcel_is_accounted_for(base_passes):
+    *_, first, second, _ = base_passes
+    for s in (first, second):
+        c = s.counts
+        assert c["lost"] == 0
+        assert c["injected"] == c["exited"] + c["stuck"] == 3000
+    assert second.counts["particle_collisions"] > 0 and first.counts["particle_collisions"] == 0
+    assert second.counts["wall_rebounds"] > 0
+
+
+@pytest.mark.parametrize("which", ["one-way pass (no collision statistics)", "four-way pass"])
+def test_momentum_budget_closes_to_round_off(base_passes, which):
+    """Σ cells of the source = −(out − in − net weight − wall − inter-particle − inlet impulses)."""
+    mesh, _, first, second, _ = base_passes
+    s = first if which.startswith("one") else second
+    b = s.budget
+    cell_sum = -np.array([s.momentum_source(c) * mesh.volume for c in range(3)]).reshape(3, -1).sum(axis=1)
+    balance = (b["momentum_out"] - b["momentum_in"] - b["weight"] - b["wall_collisions"]
+               - b["particle_collisions"] - b["inlet_reflections"])
+    scale = np.abs(b["momentum_in"]).max()
+    assert cell_sum == pytest.approx(b["fluid_impulse"], abs=1e-12 * scale)
+    assert cell_sum == pytest.approx(balance, abs=1e-11 * scale)
+    if which == "four-way pass":
+        assert np.abs(b["particle_collisions"]).max() > 1e-6 * scale  # counted, and not negligible
+    assert b["mass_out"] + b["mass_stuck"] == pytest.approx(b["mass_in"], rel=1e-13)
+
+
+def test_axial_mass_flux_carries_the_particle_mass_flow(base_passes):
+    mesh, gas, first, *_ = base_passes
+    mdot = BASE.mass_loading * AIR.density * 10.0 * math.pi * mesh.radius**2
+    flow = np.sum(first.mass_flux * mesh.cell_area[None])
+    assert flow == pytest.approx(mdot, rel=1e-3)
+
+
+def test_injection_is_uniform_over_the_section(base_passes):
+    mesh, *_, second, _ = base_passes
+    st = second.states
+    r2 = (st[:, 17] ** 2 + st[:, 18] ** 2) / (mesh.radius - 0.5 * BASE.diameter) ** 2
+    assert np.all(st[:, 16] == 0.0)
+    assert r2.mean() == pytest.approx(0.5, abs=4 * math.sqrt(1 / 12 / st.shape[0]))
+
+
+def test_standard_errors_come_from_the_batch_spread(base_passes):
+    *_, first, _, _ = base_passes
+    assert first.batches >= 8
+    se = first.concentration_stderr
+    c = first.concentration
+    filled = first.visits > 50
+    rel = se[filled] / c[filled]
+    assert np.all(np.isfinite(rel)) and np.median(rel) < 0.5 and np.all(rel > 0.0)
+
+
+def test_same_sources_bit_for_bit_with_one_and_two_threads(base_passes):
+    mesh, gas, _, second, stats = base_passes
+    old = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = track(mesh, gas, BASE, PhysicsOptions(), parcels=3000, seed=7, pass_index=1, stats=stats)
+    finally:
+        numba.set_num_threads(old)
+    assert numba.config.NUMBA_NUM_THREADS >= 2
+    assert np.array_equal(one.total, second.total)
+    assert np.array_equal(one.var, second.var, equal_nan=True)
+
+
+def test_a_pass_draws_fresh_noise_and_a_seed_reproduces(base_passes):
+    mesh, gas, first, *_ = base_passes
+    again = track(mesh, gas, BASE, PhysicsOptions(), parcels=3000, seed=7, pass_index=0)
+    other = track(mesh, gas, BASE, PhysicsOptions(), parcels=3000, seed=7, pass_index=5)
+    assert np.array_equal(again.total, first.total)
+    assert not np.array_equal(other.total, first.total)
+
+
+def test_residence_cap_stops_and_counts_parcels():
+    mesh, gas = periodic_pipe()
+    s = track(mesh, gas, BASE, PhysicsOptions(inter_particle_collisions=False), parcels=200, seed=1,
+              settings=TrackSettings(residence_cap=0.02))
+    assert s.counts["stuck"] == 200 and s.counts["lost"] == 0
+    b = s.budget
+    assert b["mass_stuck"] == pytest.approx(b["mass_in"], rel=1e-13)
