@@ -134,7 +134,7 @@ class FieldTable:
         """Fields (NF,) at one point (Python convenience around ``interpolate``)."""
         out = np.empty(NF)
         interpolate(float(x), float(y), float(z), self.values, self.axis, self.x_centres,
-                    self.r_centres, self.radius, self.nu, out)
+                    self.r_centres, self.r_edges, self.length, self.radius, self.nu, out)
         return out
 
 
@@ -167,11 +167,35 @@ def _blend_section(tab, i, j, k0, k1, wt, f, out, scale):
 
 
 @njit(**KERNEL_FLAGS)
-def interpolate(x, y, z, tab, axis, xc, rc, radius, nu, out):
+def _cell_of(x, r, th, nx, nr, nt, r_edges, length):
+    """Cell (i, j, k) of a point at axial x, radius r, polar angle th in [0, 2π) (as locate_cell)."""
+    if x < 0.0 or x > length or r > r_edges[nr]:
+        return -1, -1, -1
+    i = int(x / length * nx)
+    if i >= nx:
+        i = nx - 1
+    lo = 0
+    hi = nr
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if r_edges[mid] <= r:
+            lo = mid
+        else:
+            hi = mid
+    k = int(th / (2.0 * math.pi) * nt)
+    if k >= nt:
+        k = nt - 1
+    return i, lo, k
+
+
+@njit(**KERNEL_FLAGS)
+def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out):
     """Gas fields at the point (x, y, z) [m] into ``out`` (NF,); see the module docstring.
 
     tab (nx, nr, nt, NT), axis (nx, NT), xc (nx,) station centres (uniform), rc (nr,) ring
-    centres, radius [m], nu [m2 s-1].  Points beyond r = R are treated as on the wall ring.
+    centres, r_edges (nr+1,), length [m], radius [m], nu [m2 s-1].  Points beyond r = R are
+    treated as on the wall ring.  Returns the indices (i, j, k) of the cell holding the point,
+    as ``rans.locate_cell`` computes them (i = -1 outside the pipe).
     """
     nx = tab.shape[0]
     nr = tab.shape[1]
@@ -205,6 +229,7 @@ def interpolate(x, y, z, tab, axis, xc, rc, radius, nu, out):
     k0 = int(kf) % nt
     k1 = (k0 + 1) % nt
     r = math.sqrt(y * y + z * z)
+    ci, cj, ck = _cell_of(x, r, th, nx, nr, nt, r_edges, length)
     dwx = 0.0 if (nx == 1 or wx <= 0.0 or wx >= 1.0) else 1.0 / (xc[1] - xc[0])
     dwt = nt / (2.0 * math.pi)  # d wt / d theta
     if r < rc[nr - 1]:
@@ -267,7 +292,7 @@ def interpolate(x, y, z, tab, axis, xc, rc, radius, nu, out):
         out[F_DKX] = kx
         out[F_DKY] = st * kr + ct * kt_over_r
         out[F_DKZ] = ct * kr - st * kt_over_r
-        return
+        return ci, cj, ck
     # wall-function cell: wall-ring values at (x, theta), then the log-law reconstruction
     j = nr - 1
     _blend_section(tab, i0, j, k0, k1, wt, F_EPS + 1, out, 1.0 - wx)
@@ -311,3 +336,4 @@ def interpolate(x, y, z, tab, axis, xc, rc, radius, nu, out):
     out[F_DKX] = 0.0
     out[F_DKY] = 0.0
     out[F_DKZ] = 0.0
+    return ci, cj, ck

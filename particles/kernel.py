@@ -54,8 +54,9 @@ from numba.core.errors import NumbaWarning
 
 from collisions.conf import JIT_FLAGS, KERNEL_FLAGS
 from collisions.interparticle import InterparticleOptions, make_interparticle_collision
-from collisions.random import (STREAM_COLLISION, STREAM_DISPERSION, STREAM_INJECTION, STREAM_WALL,
-                               next_normal_pair, next_uniform_pair, rng_state)
+from collisions.random import (RNG_DRAW, RNG_PARCEL, RNG_PASS, RNG_SEED, RNG_STATE_SIZE, RNG_STREAM,
+                               STREAM_COLLISION, STREAM_DISPERSION, STREAM_INJECTION, STREAM_WALL,
+                               next_normal_pair, next_uniform_pair)
 from collisions.wall import (WALL_REBOUND, WALL_ROLLING, WALL_SLIDING, WallOptions,
                              make_wall_collision)
 from rans.mesh import locate_cell
@@ -127,17 +128,18 @@ class PhysicsOptions:
 
 # ---------------------------------------------------------------------------- geometry
 @njit(**KERNEL_FLAGS)
-def walk_segment(p0x, p0y, p0z, dx, dy, dz, i, j, k, x_edges, r_edges, nt, seg_cell, seg_frac):
+def walk_segment(p0x, p0y, p0z, dx, dy, dz, i, j, k, x_edges, r_edges, ray_sin, ray_cos, seg_cell,
+                 seg_frac):
     """Split the straight segment p0 → p0 + d between the cells it crosses.
 
-    (i, j, k): the cell holding p0.  Writes (flat cell index, fraction of the segment) into
+    (i, j, k): the cell holding p0; ray_sin, ray_cos (nt+1,): sin and cos of the sector edges.  Writes (flat cell index, fraction of the segment) into
     seg_cell/seg_frac and returns (n_segments, end) with end = 0 inside the pipe, 1 through
     the outlet plane, 2 through the inlet plane (the fractions then sum to the part inside).
     Faces: axial planes, ring circles (exact quadratic roots), sector rays (half-lines).
     """
     nx = x_edges.shape[0] - 1
     nr = r_edges.shape[0] - 1
-    dth = 2.0 * math.pi / nt
+    nt = ray_sin.shape[0] - 1
     a = dy * dy + dz * dz
     b = p0y * dy + p0z * dz
     c = p0y * p0y + p0z * p0z
@@ -177,9 +179,8 @@ def walk_segment(p0x, p0y, p0z, dx, dy, dz, i, j, k, x_edges, r_edges, nt, seg_c
         for side in range(2):
             if (side == 0 and entry == 5) or (side == 1 and entry == 4):
                 continue
-            phi = (k + 1 - side) * dth
-            sp = math.sin(phi)
-            cp = math.cos(phi)
+            sp = ray_sin[k + 1 - side]
+            cp = ray_cos[k + 1 - side]
             den = dz * sp - dy * cp
             if den != 0.0:
                 t = (p0y * cp - p0z * sp) / den
@@ -218,6 +219,16 @@ def walk_segment(p0x, p0y, p0z, dx, dy, dz, i, j, k, x_edges, r_edges, nt, seg_c
             seg_frac[n - 1] += 1.0 - s  # pathological: the rest stays in the last cell
             break
     return n, end
+
+
+@njit(**KERNEL_FLAGS)
+def _key_rng(rng, seed, pass_, parcel, stream):
+    """Reset a random-stream state int64[5] to the key (seed, pass, parcel, stream), draw 0."""
+    rng[RNG_SEED] = seed
+    rng[RNG_PASS] = pass_
+    rng[RNG_PARCEL] = parcel
+    rng[RNG_STREAM] = stream
+    rng[RNG_DRAW] = 0
 
 
 # ---------------------------------------------------------------------------- motion
@@ -411,8 +422,10 @@ def make_tracker(options=PhysicsOptions()):
 
     key = repr(options)  # a closure cell: numba's cache key then differs per option set
 
-    def track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
-                    x_centres, tab, axis, stats, prm, out, state):
+    def track_parcels(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                      x_centres, tab, axis, stats, prm, out, state, dvals, fvals, pos, vel, omega,
+                      useen, uf, imp, dv, partner, seg_cell, seg_frac, mean_own, rms, wmean, wrms,
+                      saved, ray_sin, ray_cos, rng_inj, rng_disp, rng_wall, rng_pp):
         if len(key) == 0:  # never true; keeps ``key`` in the closure (cache key)
             return
         nx = x_edges.shape[0] - 1
@@ -437,29 +450,12 @@ def make_tracker(options=PhysicsOptions()):
         dxc = length / nx
         speed_max = prm[P_SPEEDMAX]
         two_pi = 2.0 * math.pi
-        dvals = np.empty(NF)
-        fvals = np.empty(NF)
-        pos = np.empty(3)
-        vel = np.empty(3)
-        omega = np.zeros(3)
-        useen = np.zeros(3)
-        uf = np.empty(3)
-        imp = np.empty(3)
-        dv = np.zeros(3)
-        partner = np.empty(9)
-        seg_cell = np.empty(MAX_SEGMENTS, dtype=np.int64)
-        seg_frac = np.empty(MAX_SEGMENTS)
-        mean_own = np.empty(3)
-        rms = np.empty(3)
-        wmean = np.empty(3)
-        wrms = np.empty(3)
-        saved = np.empty(6)
         for q in range(count):
             pid = first + q
-            rng_inj = rng_state(seed, pass_, pid, STREAM_INJECTION, 0)
-            rng_disp = rng_state(seed, pass_, pid, STREAM_DISPERSION, 0)
-            rng_wall = rng_state(seed, pass_, pid, STREAM_WALL, 0)
-            rng_pp = rng_state(seed, pass_, pid, STREAM_COLLISION, 0)
+            _key_rng(rng_inj, seed, pass_, pid, STREAM_INJECTION)
+            _key_rng(rng_disp, seed, pass_, pid, STREAM_DISPERSION)
+            _key_rng(rng_wall, seed, pass_, pid, STREAM_WALL)
+            _key_rng(rng_pp, seed, pass_, pid, STREAM_COLLISION)
             # ---- injection: uniform over the section, Gaussian velocity (seed; PHYSICS.md §12)
             u1, u2 = next_uniform_pair(rng_inj)
             rr = r_contact * math.sqrt(u1)
@@ -476,7 +472,8 @@ def make_tracker(options=PhysicsOptions()):
             vel[1] = prm[P_INJ_RMS] * g1
             vel[2] = prm[P_INJ_RMS] * g2
             omega[:] = 0.0
-            interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, radius, nu, fvals)
+            ci, cj, ck = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
+                                         radius, nu, fvals)
             if langevin:
                 sig = math.sqrt(2.0 * fvals[F_K] / 3.0)
                 g4, g5 = next_normal_pair(rng_inj)
@@ -492,6 +489,8 @@ def make_tracker(options=PhysicsOptions()):
             t = 0.0
             steps = 0
             status = 0
+            have_spare = False
+            spare = 0.0
             while True:
                 # ---- fields at x_n (fvals), time step
                 kk = fvals[F_K]
@@ -500,7 +499,6 @@ def make_tracker(options=PhysicsOptions()):
                 t_l = C_T * sig2 / eps
                 for c in range(3):
                     uf[c] = fvals[F_UX + c] + useen[c]
-                ci, cj, ck = locate_cell(pos[0], pos[1], pos[2], length, nx, r_edges, nt)
                 if ci < 0:
                     status = S_LOST
                     break
@@ -537,7 +535,7 @@ def make_tracker(options=PhysicsOptions()):
                 wsx = omega[0]
                 wsy = omega[1]
                 wsz = omega[2]
-                _ADVANCE(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
+                tau_step = _ADVANCE(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
                 # separation from the fluid element over the step, Δr = ∫(u_F − u_p)dt (PHYSICS.md §2.2)
                 drx = uf[0] * dt - (pos[0] - saved[0])
                 dry = uf[1] * dt - (pos[1] - saved[1])
@@ -564,7 +562,7 @@ def make_tracker(options=PhysicsOptions()):
                             omega[0] = wsx
                             omega[1] = wsy
                             omega[2] = wsz
-                        _ADVANCE(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
+                        tau_step = _ADVANCE(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
                         r1 = math.sqrt(pos[1] * pos[1] + pos[2] * pos[2])
                     if r1 > r_contact:
                         f = r_contact / r1
@@ -575,7 +573,7 @@ def make_tracker(options=PhysicsOptions()):
                 dys = pos[1] - saved[1]
                 dzs = pos[2] - saved[2]
                 nseg, end = walk_segment(saved[0], saved[1], saved[2], dxs, dys, dzs, ci, cj, ck,
-                                         x_edges, r_edges, nt, seg_cell, seg_frac)
+                                         x_edges, r_edges, ray_sin, ray_cos, seg_cell, seg_frac)
                 inside = 0.0
                 uj = useen[0] * imp[0] + useen[1] * imp[1] + useen[2] * imp[2]
                 wdt = ndot * dt
@@ -637,7 +635,8 @@ def make_tracker(options=PhysicsOptions()):
                     if pos[0] > length:
                         pos[0] = length
                 # ---- fields at x_{n+1}; Langevin update of the fluid velocity seen
-                interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, radius, nu, dvals)
+                ni, nj, nk = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
+                                         radius, nu, dvals)
                 if langevin:
                     src = dvals  # k, eps and grad k at the new position (PHYSICS.md §2.1)
                     sig2n = 2.0 * src[F_K] / 3.0
@@ -646,7 +645,12 @@ def make_tracker(options=PhysicsOptions()):
                     r_l = math.exp(-dt / t_ln)
                     dr2 = drx * drx + dry * dry + drz * drz
                     z0, z1 = next_normal_pair(rng_disp)
-                    z2, _z3 = next_normal_pair(rng_disp)
+                    if have_spare:  # three normals per step from three pairs every two steps
+                        z2 = spare
+                        have_spare = False
+                    else:
+                        z2, spare = next_normal_pair(rng_disp)
+                        have_spare = True
                     if dr2 > 0.0:
                         dr = math.sqrt(dr2)
                         l_e = C_L * t_ln * sign
@@ -669,6 +673,9 @@ def make_tracker(options=PhysicsOptions()):
                         useen[c] = un
                 for qq in range(NF):
                     fvals[qq] = dvals[qq]
+                ci = ni
+                cj = nj
+                ck = nk
                 # ---- wall collision
                 if hit_wall:
                     vmag = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
@@ -698,10 +705,10 @@ def make_tracker(options=PhysicsOptions()):
                         out[off_speed + min(int(vmag / speed_max * N_SPEED_BINS), N_SPEED_BINS - 1)] += ndot
                     for c in range(3):
                         out[off_bud + B_WALL + c] += w_m * dv[c]
-                    interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, radius, nu, fvals)
+                    ci, cj, ck = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
+                                         radius, nu, fvals)
                 # ---- inter-particle collision with a fictitious partner (previous pass's statistics)
                 if pp:
-                    ci, cj, ck = locate_cell(pos[0], pos[1], pos[2], length, nx, r_edges, nt)
                     if ci >= 0:
                         cell = (ci * nr + cj) * nt + ck
                         if stats[cell, CS_OK] > 0.0:
@@ -710,16 +717,10 @@ def make_tracker(options=PhysicsOptions()):
                                 rms[c] = stats[cell, CS_RMS + c]
                                 wmean[c] = stats[cell, CS_WM + c]
                                 wrms[c] = stats[cell, CS_WRMS + c]
-                            rx = fvals[F_UX] + useen[0] - vel[0]
-                            ry = fvals[F_UX + 1] + useen[1] - vel[1]
-                            rz = fvals[F_UX + 2] + useen[2] - vel[2]
-                            re_p = prm[P_RHO_F] * d * math.sqrt(rx * rx + ry * ry + rz * rz) / prm[P_MU]
-                            tau_p = fl.response_time(rho_p, d, prm[P_MU],
-                                                     fl.schiller_naumann_drag_factor(re_p))
                             t_lc = C_T * (2.0 * fvals[F_K] / 3.0) / fvals[F_EPS]
                             dv[:] = 0.0
                             code = _PP(vel, omega, d, mean_own, d, mean_own, rms, wmean, wrms,
-                                                stats[cell, CS_N], tau_p / t_lc, dt, rng_pp, dv, partner)
+                                                stats[cell, CS_N], tau_step / t_lc, dt, rng_pp, dv, partner)
                             if code > 0:
                                 out[off_cnt + C_PP] += 1.0
                                 for c in range(3):
@@ -759,8 +760,25 @@ def make_tracker(options=PhysicsOptions()):
             state[q, 17] = y_in
             state[q, 18] = z_in
 
-    track_batch = njit(**JIT_FLAGS)(_with_globals(track_batch, _ADVANCE=advance, _WALL=wall_collision,
-                                                  _PP=pp_collision))
+    # the parcel loop runs without the numba runtime's reference counting (KERNEL_FLAGS): array
+    # arguments of the many sub-kernel calls per step then cost nothing (collisions/conf.py)
+    track_parcels = njit(**KERNEL_FLAGS)(_with_globals(track_parcels, _ADVANCE=advance,
+                                                       _WALL=wall_collision, _PP=pp_collision))
+
+    def track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                    x_centres, tab, axis, stats, prm, out, state):
+        if len(key) == 0:
+            return
+        ray = np.arange(nt + 1) * (2.0 * math.pi / nt)
+        rngs = np.zeros((4, RNG_STATE_SIZE), dtype=np.int64)
+        _TRACK_PARCELS(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                       x_centres, tab, axis, stats, prm, out, state, np.empty(NF), np.empty(NF),
+                       np.empty(3), np.empty(3), np.zeros(3), np.zeros(3), np.empty(3), np.empty(3),
+                       np.zeros(3), np.empty(9), np.empty(MAX_SEGMENTS, dtype=np.int64),
+                       np.empty(MAX_SEGMENTS), np.empty(3), np.empty(3), np.empty(3), np.empty(3),
+                       np.empty(6), np.sin(ray), np.cos(ray), rngs[0], rngs[1], rngs[2], rngs[3])
+
+    track_batch = njit(**JIT_FLAGS)(_with_globals(track_batch, _TRACK_PARCELS=track_parcels))
 
     def track_superbatch(starts, counts, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                          x_centres, tab, axis, stats, prm, totals, squares, cross, n_acc_cells,

@@ -15,6 +15,14 @@ from rans import kepsilon as ke
 
 from .particle_support import AIR, periodic_pipe
 
+def RS(nt):
+    return np.sin(np.arange(nt + 1) * 2.0 * math.pi / nt)
+
+
+def RC(nt):
+    return np.cos(np.arange(nt + 1) * 2.0 * math.pi / nt)
+
+
 BASE = ParticleSpec(200e-6, 1020.0, 2.2, 10.0, 0.5, 1.5)  # Tsuji-Morikawa base particles
 
 
@@ -33,7 +41,7 @@ def test_segment_walk_splits_by_time_fraction_into_the_right_cells():
             [math.sin(t := rng.uniform(0, 2 * math.pi)), math.cos(t)]))])
         d = p1 - p0
         i, j, k = locate_cell(*p0, mesh.length, mesh.nx, mesh.r_edges, nt)
-        n, end = walk_segment(*p0, *d, i, j, k, mesh.x_edges, mesh.r_edges, nt, cells, fracs)
+        n, end = walk_segment(*p0, *d, i, j, k, mesh.x_edges, mesh.r_edges, RS(nt), RC(nt), cells, fracs)
         assert end == 0
         assert fracs[:n].sum() == pytest.approx(1.0, abs=1e-12)
         s = 0.0
@@ -50,7 +58,7 @@ def test_segment_walk_stops_at_the_outlet_plane():
     cells = np.empty(MAX_SEGMENTS, dtype=np.int64)
     fracs = np.empty(MAX_SEGMENTS)
     n, end = walk_segment(0.095, 0.0, 0.001, 0.01, 0.0, 0.0, 9, 0, 0, mesh.x_edges, mesh.r_edges,
-                          mesh.nt, cells, fracs)
+                          RS(mesh.nt), RC(mesh.nt), cells, fracs)
     assert end == 1 and fracs[:n].sum() == pytest.approx(0.5)
 
 
