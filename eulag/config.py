@@ -538,6 +538,23 @@ class NumericsConfig(_Section):
         Convergence tolerance of the gas solver (residual) [1], in (0, 0.1] (default 1e-6).
     gas_max_iterations : int
         Iteration cap of one gas solve, >= 1 (default 3000).
+    gas_iterations_per_pass : int
+        Outer-iteration cap of the periodic gas solve between two Lagrangian passes, >= 1
+        (default 300): the coupling loop iterates on, so each gas solve need not converge
+        fully (PHYSICS.md §5.2); convergence of the run requires the last one to.
+    step_factor : float
+        Factor c of the particle time step c · min(...) [1], in (0, 1] (default 0.5).
+    batch_size : int
+        Parcels per batch [1], >= 1 (default 4096); at least 8 batches are formed, and the
+        spread between batches gives the standard errors. With ``seed`` it fixes the numbers.
+    batches_per_superbatch : int
+        Batches per super-batch, the unit of parallel or distributed work [1], >= 1 (default 8).
+    coupling_tolerance : float
+        Coupling residual below which the sources are no longer changing beyond their noise
+        [1], > 0 (default 1.5; the residual is about 1 when the changes are pure noise).
+    residence_cap : float
+        Residence time after which a parcel is stopped and counted as stuck [s], > 0
+        (default 50 pipe.length / gas.bulk_velocity).
     """
 
     section: ClassVar[str] = "numerics"
@@ -563,6 +580,16 @@ class NumericsConfig(_Section):
     gas_tolerance: float = _param(NUMBER, "gas-solver residual tolerance", default=1e-6, gt=0.0,
                                   le=0.1)
     gas_max_iterations: int = _param(INTEGER, "gas-solver iteration cap", default=3000, ge=1)
+    gas_iterations_per_pass: int = _param(INTEGER, "periodic gas iterations per coupling pass",
+                                          default=300, ge=1)
+    step_factor: float = _param(NUMBER, "particle time-step factor", default=0.5, gt=0.0, le=1.0)
+    batch_size: int = _param(INTEGER, "parcels per batch", default=4096, ge=1)
+    batches_per_superbatch: int = _param(INTEGER, "batches per super-batch", default=8, ge=1)
+    coupling_tolerance: float = _param(NUMBER, "coupling residual tolerance (noise units)",
+                                       default=1.5, gt=0.0, le=1000.0)
+    residence_cap: float | None = _param(NUMBER, "parcel residence-time cap", unit="s",
+                                         default=None, gt=0.0, optional=True,
+                                         none_label="50 pipe.length / gas.bulk_velocity")
 
     def _resolve_and_check(self):
         if self.parcels_start is None:

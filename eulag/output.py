@@ -167,3 +167,135 @@ def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:
             pass
         raise
     return path
+
+
+def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Dataset:
+    """The dataset of a finished :class:`eulag.coupling.CouplingLoop` (gas + particles).
+
+    Gas variables are the last gas solve's; particle statistics and their ``*_stderr`` (from
+    the batch spread) average the final ``numerics.average_passes`` passes; ``source_*`` are
+    the relaxed sources as the gas used them (zero for one-way coupling, which applies none);
+    the coupling history has one entry per Lagrangian pass.
+    """
+    case, mesh = loop.case, loop.mesh
+    nx, nr, nt = mesh.shape
+    xyz = ("x", "r", "theta")
+    cell_vars = dict(coordinates="y z", cell_measures="area: cell_area")
+    s = loop.sample()
+    h = loop.history.arrays()
+    npass = h["residual"].size
+    timings = {k: float(v) for k, v in loop.timings.items()}
+    ds = gas_dataset(case, mesh, loop.gas, timings=timings)
+    ds = ds.drop_vars(["residual"]).drop_dims("iteration", errors="ignore")
+    ds = ds.assign_coords(iteration=xr.Variable("iteration", np.arange(1, npass + 1, dtype=np.int64),
+                                                {"long_name": "coupling pass (Lagrangian pass + gas solve)",
+                                                 "units": "1"}))
+
+    def cell(name, values, units, long_name, **extra):
+        ds[name] = _var(xyz, values, units, long_name, **cell_vars, **extra)
+
+    names = ("x", "y", "z")
+    for c in range(3):
+        cell(f"particle_u{names[c]}", s.velocity(c), "m s-1",
+             f"mass-weighted mean particle velocity, {names[c]} (NaN where no particles)")
+        cell(f"particle_u{names[c]}_stderr", s.velocity_stderr(c), "m s-1",
+             f"standard error of particle_u{names[c]} (batch spread)")
+        cell(f"particle_u{names[c]}_rms", s.velocity_rms(c), "m s-1",
+             f"rms of the particle velocity fluctuation, {names[c]}")
+        cell(f"particle_u{names[c]}_rms_stderr", s.velocity_rms_stderr(c), "m s-1",
+             f"standard error of particle_u{names[c]}_rms (batch spread)")
+    cell("particle_concentration", s.concentration, "kg m-3", "particle mass concentration")
+    cell("particle_concentration_stderr", s.concentration_stderr, "kg m-3",
+         "standard error of particle_concentration (batch spread)")
+    cell("particle_number_density", s.number_density, "m-3", "particle number concentration")
+    cell("particle_mass_flux", s.mass_flux, "kg m-2 s-1", "axial particle mass flux")
+    cell("particle_mass_flux_stderr", s.mass_flux_stderr, "kg m-2 s-1",
+         "standard error of particle_mass_flux (batch spread)")
+    src = loop.sources
+    applied = src is not None
+    zero = np.zeros(mesh.shape)
+    note = {} if applied else {"comment": "one-way coupling: no source applied to the gas"}
+    for c in range(3):
+        cell(f"source_u{names[c]}", src["momentum"][c] if applied else zero, "N m-3",
+             f"momentum source on the gas, {names[c]} (relaxed, as used)", **note)
+        cell(f"source_u{names[c]}_stderr", s.momentum_source_stderr(c), "N m-3",
+             f"standard error of the sampled momentum source, {names[c]} (batch spread)")
+    cell("source_k", src["k"] if applied else zero, "W m-3",
+         "turbulence source S_k = -<u'_F . J> (relaxed, as used)", **note)
+    cell("source_k_stderr", s.k_source_stderr, "W m-3", "standard error of the sampled S_k")
+    cell("source_epsilon", src["epsilon"] if applied else zero, "W m-3 s-1",
+         "dissipation source C_eps3 (eps/k) S_k, C_eps3 = 1.8 (relaxed, as used)", **note)
+    k0 = loop.gas0.k
+    cell("turbulence_modulation", loop.gas.k / k0, "1", "k with particles / k single-phase")
+    dpdx0 = np.asarray(loop.gas0.pressure_gradient, dtype=float).reshape(nx)
+    ds["pressure_gradient_single_phase"] = _var("x", dpdx0, "Pa m-1",
+                                                "section-mean -dp/dx without particles (first gas solve)")
+    ds["wall_collision_rate"] = _var(("x", "theta"), s.wall_collision_rate, "m-2 s-1",
+                                     "particle-wall impacts (rebounds) per wall area and time")
+    ds["wall_collision_rate_stderr"] = _var(("x", "theta"), s.wall_collision_rate_stderr, "m-2 s-1",
+                                            "standard error of wall_collision_rate (batch spread)")
+    ds["wall_impact_angle_mean"] = _var(("x", "theta"), s.wall_impact_angle_mean, "degree",
+                                        "mean nominal wall-impact angle (NaN: no impacts)")
+    ds["wall_impact_speed_mean"] = _var(("x", "theta"), s.wall_impact_speed_mean, "m s-1",
+                                        "mean wall-impact speed (NaN: no impacts)")
+    a_edges, a_pdf = s.impact_angle_pdf
+    v_edges, v_pdf = s.impact_speed_pdf
+    ds = ds.assign_coords(
+        impact_angle=_var("impact_angle", 0.5 * (a_edges[1:] + a_edges[:-1]), "degree",
+                          "wall-impact angle bin centre (1 degree bins)"),
+        impact_speed=_var("impact_speed", 0.5 * (v_edges[1:] + v_edges[:-1]), "m s-1",
+                          "wall-impact speed bin centre (last bin: also faster impacts)"))
+    ds["wall_impact_angle_pdf"] = _var("impact_angle", a_pdf, "1",
+                                       "fraction of wall impacts per angle bin (erosion)")
+    ds["wall_impact_speed_pdf"] = _var("impact_speed", v_pdf, "1",
+                                       "fraction of wall impacts per speed bin (erosion)")
+    it = "iteration"
+    ds["residual"] = _var(it, h["residual"], "1",
+                          "coupling residual: RMS change of the relaxed sources in units of their noise "
+                          "(NaN for the first pass)")
+    ds["parcels"] = xr.Variable(it, h["parcels"].astype(np.int64), {"long_name": "parcels tracked in the pass",
+                                                                     "units": "1"})
+    ds["parcels_lost"] = xr.Variable(it, h["lost"].astype(np.int64),
+                                     {"long_name": "parcels lost (left through a wall or non-finite): must be 0",
+                                      "units": "1"})
+    ds["parcels_stuck"] = xr.Variable(it, h["stuck"].astype(np.int64),
+                                      {"long_name": "parcels stopped by the residence-time cap", "units": "1"})
+    ds["relaxation"] = _var(it, h["relaxation"], "1", "source under-relaxation factor used in the pass")
+    ds["pressure_gradient_history"] = _var(it, h["pressure_gradient"], "Pa m-1",
+                                           "pipe-mean -dp/dx after the pass's gas solve")
+    ds["time_gas_solve_pass"] = _var(it, h["time_gas"], "s", "wall-clock time of the pass's gas solve")
+    ds["time_lagrangian_pass"] = _var(it, h["time_particles"], "s", "wall-clock time of the Lagrangian pass")
+
+    dx = mesh.dx
+    dp_total = float(np.sum(np.asarray(loop.gas.pressure_gradient).reshape(nx) * dx))
+    dp_gas = float(np.sum(dpdx0 * dx))
+    eta = case.particles.mass_loading
+    dyn = 0.5 * case.gas.density * case.gas.bulk_velocity**2 * case.pipe.length / case.pipe.diameter
+    ratio = dp_total / dp_gas
+    lam_z = (dp_total - dp_gas) / (eta * dyn) if eta > 0 else float("nan")
+    ds["solids_pressure_drop_ratio"] = _var((), ratio, "1", "pressure drop with particles / without (whole pipe)")
+    ds["additional_pressure_loss_coefficient"] = _var(
+        (), lam_z, "1", "lambda_Z = (dp_total - dp_gas) / (eta rho U0^2 L / (2 D))")
+    ds["converged"] = xr.Variable((), np.int8(1 if loop.converged else 0),
+                                  {"long_name": "coupling converged (1) or not (0)", "units": "1"})
+    c = s.counts
+    b = s.budget
+    ds.attrs.update({
+        "converged": "true" if loop.converged else "false",
+        "coupling_passes": int(npass),
+        "parcels": int(case.numerics.parcels),
+        "final_passes_averaged": int(s.passes),
+        "parcels_injected_final": c["injected"], "parcels_exited_final": c["exited"],
+        "parcels_stuck_final": c["stuck"], "wall_rebounds_final": c["wall_rebounds"],
+        "wall_sliding_steps_final": c["wall_sliding"] + c["wall_rolling"],
+        "inter_particle_collisions_final": c["particle_collisions"],
+        "inlet_reflections_final": c["inlet_reflections"],
+        "particle_steps_final": c["steps"],
+        "mean_residence_time": float(b["mean_residence_time"]),
+        "solids_pressure_drop_ratio": ratio,
+        "additional_pressure_loss_coefficient": lam_z,
+        "relaxation_final": float(h["relaxation"][-1]),
+    })
+    if attrs:
+        ds.attrs.update(attrs)
+    return ds

@@ -446,6 +446,7 @@ def solve(
     turbulence_relaxation=1.0,
     momentum_relaxation=1.0,
     progress=False,
+    require_convergence=True,
 ):
     """Solve the steady gas flow on ``mesh``; returns a :class:`GasField`.
 
@@ -468,7 +469,9 @@ def solve(
     momentum_scheme: "hybrid" (default), "upwind" or "central" cross-section convection.
 
     Raises :class:`SolverDivergence` on non-finite or non-positive k/epsilon, or when the
-    periodic mode does not reach ``tol`` within ``max_iterations`` (message says so).
+    periodic mode does not reach ``tol`` within ``max_iterations`` (message says so) unless
+    ``require_convergence`` is False: then the field after ``max_iterations`` is returned with
+    ``converged = False`` (a coupling loop's inner iterations, PHYSICS.md §5.2 step 3).
     """
     t0 = time.perf_counter()
     if bulk_velocity <= 0:
@@ -535,7 +538,7 @@ def solve(
                 break
         iters[0] = len(residuals)
         bar.close()
-        if not converged:
+        if not converged and require_convergence:
             raise SolverDivergence(
                 f"periodic gas solve did not converge: residual {residuals[-1]:.3g} > tol {tol:.3g} "
                 f"after {max_iterations} iterations"

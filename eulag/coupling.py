@@ -1,0 +1,494 @@
+"""The four-way coupling loop (Laín & Sommerfeld; PHYSICS.md §5): gas ⇄ Lagrangian passes.
+
+    case = Case.from_toml("cases/tsuji_morikawa_200um.toml")
+    for state in CouplingLoop(case):          # one PassState per Lagrangian pass
+        print(state.index, state.residual)
+    ds = run(case, "out.nc")                   # the whole run, written and returned
+
+Cycle (the reference paper's):
+
+1. the gas without particles, converged (single-phase reference: k₀, −dp/dx₀);
+2. a first Lagrangian pass without inter-particle collisions (no cell statistics yet);
+3. then alternately: gas solve with the relaxed sources S_used = (1 − α) S_used + α S_pass
+   (α = ``numerics.relaxation``; halved automatically, down to 0.05, if a gas solve fails),
+   and a Lagrangian pass in the new gas field with the cell statistics of the previous pass.
+
+Convergence ("no longer changing beyond noise"): per cell the change of the relaxed sources,
+ΔS = α (S_pass − S_used_prev), is compared with its own statistical noise
+α · se(S_pass) · sqrt(2/(2 − α)) (se from the batch spread; the relaxed history adds the
+sqrt term), with a floor of 1 % of the RMS source for poorly sampled cells; the residual of a
+pass is the RMS of these ratios over the cells and the momentum and k sources (≈ 1 once the
+changes are pure noise).  Converged when the residual is below ``numerics.coupling_tolerance``
+and, over the last three passes, the section-mean pressure gradient changed by less than 1 %
+and the particle mass balance (in = out + stuck) closes within 1 %.  Then ``average_passes``
+final passes with ``numerics.parcels`` parcels give the reported statistics (their average);
+the earlier passes use ``numerics.parcels_start``.  One-way coupling solves the gas once and
+runs the final passes only.
+
+Checkpoint: after every pass the whole loop state is written atomically to ``checkpoint``
+(``out.nc.checkpoint``); ``CouplingLoop(case, checkpoint=..., resume=True)`` continues from the
+last complete pass and ends with the same numbers as an uninterrupted run (the random streams
+are keyed by the pass index; the gas solve is deterministic).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import particles
+import rans
+from collisions import InterparticleOptions, WallOptions
+
+__all__ = ["CouplingLoop", "PassState", "CouplingError", "run", "physics_options", "particle_spec",
+           "build_mesh", "CHECKPOINT_VERSION"]
+
+CHECKPOINT_VERSION = 1
+MIN_RELAXATION = 0.05
+_FLOOR = 0.01  # noise floor of the residual, as a fraction of the RMS source
+_INTEGRAL_TOL = 0.01  # pressure gradient and mass balance, relative
+_INTEGRAL_PASSES = 3
+
+
+class CouplingError(RuntimeError):
+    """The coupling loop cannot go on; the message names the pass and the quantity."""
+
+
+# ---------------------------------------------------------------------------- case → objects
+def build_mesh(case):
+    n = case.numerics
+    return rans.PipeMesh.build(
+        diameter=case.pipe.diameter, length=case.pipe.length, mode=case.pipe.mode,
+        axial_cells=n.axial_cells, radial_cells=n.radial_cells, azimuthal_cells=n.azimuthal_cells,
+        first_cell_yplus=n.first_cell_yplus, bulk_velocity=case.gas.bulk_velocity,
+        density=case.gas.density, viscosity=case.gas.viscosity)
+
+
+def physics_options(case):
+    """Compile-time switches of the tracker from the case ([physics], [walls], [particles])."""
+    ph, w, p = case.physics, case.walls, case.particles
+    return particles.PhysicsOptions(
+        saffman_mei_lift=ph.saffman_mei_lift, magnus_lift=ph.magnus_lift, magnus_model=ph.magnus_model,
+        rotation=ph.rotation, langevin=ph.langevin, drift_correction=ph.langevin_drift_correction,
+        gravity=ph.gravity, inter_particle_collisions=ph.inter_particle_collisions,
+        step_rule=case.numerics.step_rule,
+        wall=WallOptions(impact_angle=w.impact_angle, shadow_effect=w.shadow_effect,
+                         lateral_roughness=w.lateral_roughness, rotation=ph.rotation),
+        interparticle=InterparticleOptions(restitution=p.restitution, friction=p.friction,
+                                           rotation=ph.rotation))
+
+
+def particle_spec(case):
+    p = case.particles
+    return particles.ParticleSpec(diameter=p.diameter, density=p.density, mass_loading=p.mass_loading,
+                                  injection_velocity=case.gas.bulk_velocity, injection_rms=p.injection_rms,
+                                  roughness_angle_std_deg=case.walls.roughness_angle_std_deg)
+
+
+def track_settings(case):
+    n = case.numerics
+    return particles.TrackSettings(step_factor=n.step_factor, batch_size=n.batch_size,
+                                   batches_per_superbatch=n.batches_per_superbatch,
+                                   residence_cap=n.residence_cap)
+
+
+# ---------------------------------------------------------------------------- state
+@dataclass
+class PassState:
+    """What the loop reports after each Lagrangian pass (and its gas solve).
+
+    index: pass number (1 = the first Lagrangian pass); parcels; relaxation α used;
+    residual (NaN for pass 1); pressure_gradient: section-mean −dp/dx averaged over x [Pa/m];
+    phase: "early" | "final"; converged: the loop has finished and converged; finished;
+    counts: parcel fates of the pass; times: wall-clock seconds of the pass's phases.
+    """
+
+    index: int
+    parcels: int
+    relaxation: float
+    residual: float
+    pressure_gradient: float
+    phase: str
+    converged: bool
+    finished: bool
+    counts: dict
+    times: dict
+
+
+@dataclass
+class _History:
+    residual: list = field(default_factory=list)
+    parcels: list = field(default_factory=list)
+    lost: list = field(default_factory=list)
+    stuck: list = field(default_factory=list)
+    relaxation: list = field(default_factory=list)
+    pressure_gradient: list = field(default_factory=list)
+    mass_balance: list = field(default_factory=list)
+    time_gas: list = field(default_factory=list)
+    time_particles: list = field(default_factory=list)
+
+    def arrays(self):
+        return {k: np.asarray(v, dtype=np.float64) for k, v in self.__dict__.items()}
+
+
+class CouplingLoop:
+    """Iterate the coupled solution of ``case``; see the module docstring.
+
+    Parameters
+    ----------
+    case : eulag.config.Case (with [particles])
+    checkpoint : path or None — write the loop state there after every pass
+    resume : continue from ``checkpoint`` if it exists (it must belong to the same case)
+    parcels : override of numerics.parcels (and parcels_start, if larger)
+    progress : callable(PassState) or None, called after every pass
+    """
+
+    def __init__(self, case, *, checkpoint=None, resume=False, parcels=None, progress=None):
+        if case.particles is None:
+            raise ValueError("CouplingLoop needs a case with [particles]")
+        if parcels is not None:
+            case = case.replace(numerics={"parcels": int(parcels),
+                                          "parcels_start": min(int(parcels), case.numerics.parcels_start)})
+        self.case = case
+        self.checkpoint = Path(checkpoint) if checkpoint is not None else None
+        self.progress = progress
+        self.mesh = build_mesh(case)
+        self.gas_props = rans.GasProperties(density=case.gas.density, viscosity=case.gas.viscosity)
+        self.spec = particle_spec(case)
+        self.physics = physics_options(case)
+        self.settings = track_settings(case)
+        self.alpha = case.numerics.relaxation
+        self.two_way = case.physics.coupling != "one-way"
+        self.history = _History()
+        self.timings = {"gas_solve": 0.0, "lagrangian": 0.0, "checkpoint": 0.0, "compile": 0.0}
+        self.pass_index = 0
+        self.phase = "early"
+        self.final_left = case.numerics.average_passes
+        self.converged = False
+        self.finished = False
+        self.gas = None
+        self.gas0 = None
+        self.sources = None  # relaxed, as used: dict momentum (3,...), k, epsilon, k_ref, eps_ref
+        self.stats = None
+        self.window = None  # running sums (total, var, cov) of the final passes' samples
+        self.window_n = 0
+        self.window_batches = 0
+        self.window_parcels = 0
+        self.last_sample = None
+        if resume and self.checkpoint is not None and self.checkpoint.exists():
+            self._load()
+
+    # ------------------------------------------------------------------ gas
+    # implicit under-relaxation of (k, eps) and momentum tried in turn when a periodic gas solve
+    # with strong particle sinks does not converge (the march needs none)
+    _GAS_RELAXATION = ((1.0, 1.0), (0.5, 1.0), (0.3, 0.7))
+
+    def _solve_gas(self, sources):
+        n = self.case.numerics
+        g = self.case.gas
+        initial = self.gas if self.mesh.mode == "periodic" else None
+        inner = sources is not None and self.mesh.mode == "periodic"
+        cap = n.gas_iterations_per_pass if inner else n.gas_max_iterations
+        t0 = time.perf_counter()
+        try:
+            for attempt, (tr, mr) in enumerate(self._GAS_RELAXATION):
+                try:
+                    field_ = rans.solve(self.mesh, self.gas_props, g.bulk_velocity, g.inlet_k,
+                                        g.inlet_epsilon, sources, tol=n.gas_tolerance,
+                                        max_iterations=cap, initial=initial,
+                                        turbulence_relaxation=tr, momentum_relaxation=mr,
+                                        require_convergence=not inner)
+                    break
+                except rans.SolverDivergence:
+                    if attempt + 1 == len(self._GAS_RELAXATION) or self.mesh.mode != "periodic":
+                        raise
+        finally:
+            dt = time.perf_counter() - t0
+            self.timings["gas_solve"] += dt
+        return field_, dt
+
+    def _gas_sources(self, s):
+        return rans.Sources(momentum=s["momentum"], k=s["k"], epsilon=s["epsilon"],
+                            k_reference=s["k_ref"], epsilon_reference=s["eps_ref"])
+
+    # ------------------------------------------------------------------ iteration
+    def __iter__(self):
+        while not self.finished:
+            yield self.step()
+
+    def step(self):
+        """Run one Lagrangian pass and the gas solve that follows; returns its PassState."""
+        if self.finished:
+            raise StopIteration
+        n = self.case.numerics
+        if self.gas0 is None:
+            self.gas0, _ = self._solve_gas(None)
+            if not self.gas0.converged:
+                raise CouplingError("single-phase gas solve did not converge")
+            self.gas = self.gas0
+        self.pass_index += 1
+        m = self.pass_index
+        if not self.two_way:
+            self.phase = "final"
+        elif self.phase == "early" and m > n.max_passes - n.average_passes:
+            self.phase = "final"
+        parcels_m = n.parcels if self.phase == "final" else n.parcels_start
+        stats = self.stats if self.physics.inter_particle_collisions else None
+        t0 = time.perf_counter()
+        sample = particles.track(self.mesh, self.gas, self.spec, self.physics, parcels=parcels_m,
+                                 seed=n.seed, pass_index=m, stats=stats, settings=self.settings)
+        t_part = time.perf_counter() - t0
+        self.timings["lagrangian"] += t_part
+        counts = sample.counts
+        if counts["lost"]:
+            raise CouplingError(f"pass {m}: {counts['lost']} parcels lost (non-finite state or left "
+                                "the pipe through a wall); the tracker must never lose parcels")
+        if self.physics.inter_particle_collisions:
+            self.stats = sample.cell_statistics(self.gas, min_visits=self.settings.min_visits)
+        computed = self._computed_sources(sample)
+        residual = math.nan
+        t_gas = 0.0
+        if self.two_way:
+            alpha = self.alpha
+            while True:
+                relaxed, residual = self._relax(computed, sample, alpha)
+                try:
+                    gas, t_gas = self._solve_gas(self._gas_sources(relaxed))
+                    break
+                except rans.SolverDivergence as err:
+                    if alpha / 2 < MIN_RELAXATION:
+                        raise CouplingError(f"pass {m}: gas solve with the particle sources failed even "
+                                            f"with relaxation {alpha:g}: {err}") from None
+                    alpha = max(MIN_RELAXATION, alpha / 2)
+            self.alpha = alpha
+            self.sources = relaxed
+            self.gas = gas
+        b = sample.budget
+        mass_balance = abs(b["mass_in"] - b["mass_out"] - b["mass_stuck"]) / b["mass_in"]
+        dpdx = float(np.mean(self.gas.pressure_gradient))
+        h = self.history
+        h.residual.append(residual)
+        h.parcels.append(parcels_m)
+        h.lost.append(counts["lost"])
+        h.stuck.append(counts["stuck"])
+        h.relaxation.append(self.alpha if self.two_way else 0.0)
+        h.pressure_gradient.append(dpdx)
+        h.mass_balance.append(mass_balance)
+        h.time_gas.append(t_gas)
+        h.time_particles.append(t_part)
+        self.last_sample = sample
+        if self.phase == "final":
+            self._add_to_window(sample)
+            self.final_left -= 1
+            if self.final_left <= 0:
+                self.finished = True
+                self.converged = (self.converged or not self.two_way) and bool(self.gas.converged)
+        elif self._converged_now():
+            self.converged = True
+            self.phase = "final"
+        state = PassState(index=m, parcels=parcels_m, relaxation=h.relaxation[-1], residual=residual,
+                          pressure_gradient=dpdx, phase=self.phase, converged=self.converged and self.finished,
+                          finished=self.finished, counts=counts,
+                          times={"gas_solve": t_gas, "lagrangian": t_part})
+        if self.checkpoint is not None:
+            t0 = time.perf_counter()
+            self._save()
+            self.timings["checkpoint"] += time.perf_counter() - t0
+        if self.progress is not None:
+            self.progress(state)
+        return state
+
+    def _computed_sources(self, sample):
+        mom = np.stack([sample.momentum_source(c) for c in range(3)])
+        sk = sample.k_source
+        return {"momentum": mom, "k": sk, "epsilon": sample.epsilon_source(self.gas.k, self.gas.epsilon),
+                "se_momentum": np.stack([sample.momentum_source_stderr(c) for c in range(3)]),
+                "se_k": sample.k_source_stderr}
+
+    def _relax(self, comp, sample, alpha):
+        """Relaxed sources and the coupling residual of this pass (see the module docstring)."""
+        prev = self.sources
+        shape = self.mesh.shape
+        if prev is None:
+            prev = {"momentum": np.zeros((3,) + shape), "k": np.zeros(shape), "epsilon": np.zeros(shape)}
+        new = {"momentum": (1 - alpha) * prev["momentum"] + alpha * comp["momentum"],
+               "k": (1 - alpha) * prev["k"] + alpha * comp["k"],
+               "epsilon": (1 - alpha) * prev["epsilon"] + alpha * comp["epsilon"],
+               "k_ref": self.gas.k.copy(), "eps_ref": self.gas.epsilon.copy()}
+        residual = math.nan
+        if self.sources is not None:
+            fac = alpha * math.sqrt(2.0 / (2.0 - alpha))
+            ratios = []
+            for d, se in ((new["momentum"] - prev["momentum"], comp["se_momentum"]),
+                          (new["k"] - prev["k"], comp["se_k"])):
+                scale = np.sqrt(np.mean(new["momentum"] ** 2)) if d.ndim == 4 else np.sqrt(np.mean(new["k"] ** 2))
+                noise = np.where(np.isfinite(se), fac * se, 0.0)
+                noise = np.maximum(noise, _FLOOR * scale + 1e-300)
+                ratios.append((d / noise).ravel())
+            z = np.concatenate(ratios)
+            residual = float(np.sqrt(np.mean(z * z)))
+        return new, residual
+
+    def _converged_now(self):
+        h = self.history
+        n = self.case.numerics
+        if not self.gas.converged:
+            return False
+        if len(h.residual) < _INTEGRAL_PASSES + 1 or not h.residual[-1] < n.coupling_tolerance:
+            return False
+        dp = np.asarray(h.pressure_gradient[-(_INTEGRAL_PASSES + 1):])
+        if np.max(np.abs(np.diff(dp))) > _INTEGRAL_TOL * abs(dp[-1]):
+            return False
+        return max(h.mass_balance[-_INTEGRAL_PASSES:]) < _INTEGRAL_TOL
+
+    def _add_to_window(self, s):
+        if self.window is None:
+            self.window = [s.total.copy(), s.var.copy(), s.cov.copy()]
+        else:
+            self.window[0] += s.total
+            self.window[1] += s.var
+            self.window[2] += s.cov
+        self.window_n += 1
+        self.window_batches += s.batches
+        self.window_parcels += s.parcels
+
+    # ------------------------------------------------------------------ results
+    def sample(self):
+        """The averaged sample of the final passes (a particles.Sample)."""
+        if not self.window_n:
+            raise CouplingError("no final passes yet")
+        n = self.window_n
+        return particles.Sample(mesh=self.mesh, spec=self.spec, parcels=self.window_parcels,
+                                batches=self.window_batches, total=self.window[0] / n,
+                                var=self.window[1] / n**2, cov=self.window[2] / n**2, passes=n)
+
+    def run(self):
+        for _ in self:
+            pass
+        return self
+
+    # ------------------------------------------------------------------ checkpoint
+    _GAS = ("ux", "uy", "uz", "p", "k", "epsilon", "pressure_gradient", "wall_shear", "residuals",
+            "station_iterations")
+
+    def _save(self):
+        arrays = {}
+        for tag, g in (("gas", self.gas), ("gas0", self.gas0)):
+            for name in self._GAS:
+                arrays[f"{tag}_{name}"] = np.asarray(getattr(g, name))
+            if g.face_flux is not None:
+                arrays[f"{tag}_face_flux"] = g.face_flux
+            arrays[f"{tag}_converged"] = np.asarray(bool(g.converged))
+        if self.sources is not None:
+            for k, v in self.sources.items():
+                arrays[f"src_{k}"] = v
+        if self.stats is not None:
+            arrays["stats"] = self.stats
+        if self.window is not None:
+            for i, v in enumerate(self.window):
+                arrays[f"window_{i}"] = v
+        for k, v in self.history.arrays().items():
+            arrays[f"hist_{k}"] = v
+        meta = {"version": CHECKPOINT_VERSION, "case": self.case.to_attrs(), "pass_index": self.pass_index,
+                "phase": self.phase, "final_left": self.final_left, "converged": self.converged,
+                "finished": self.finished, "alpha": self.alpha, "window_n": self.window_n,
+                "window_batches": self.window_batches, "window_parcels": self.window_parcels,
+                "timings": self.timings}
+        arrays["meta"] = np.frombuffer(json.dumps(meta, default=_json_default).encode(), dtype=np.uint8)
+        _atomic_savez(self.checkpoint, arrays)
+
+    def _load(self):
+        try:
+            with np.load(self.checkpoint, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+            meta = json.loads(bytes(data["meta"]).decode())
+        except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
+            raise CouplingError(f"{self.checkpoint}: not a readable eulag checkpoint ({exc})") from None
+        if meta.get("version") != CHECKPOINT_VERSION:
+            raise CouplingError(f"{self.checkpoint}: checkpoint version {meta.get('version')} is not "
+                                f"{CHECKPOINT_VERSION}")
+        if _canonical(meta["case"]) != _canonical(json.loads(json.dumps(self.case.to_attrs(),
+                                                                        default=_json_default))):
+            raise CouplingError(f"{self.checkpoint}: checkpoint of a different case; remove it or run "
+                                "without --resume")
+        self.gas = self._gas_from(data, "gas")
+        self.gas0 = self._gas_from(data, "gas0")
+        if "src_momentum" in data:
+            self.sources = {k[4:]: data[k] for k in data if k.startswith("src_")}
+        self.stats = data.get("stats")
+        if "window_0" in data:
+            self.window = [data["window_0"].copy(), data["window_1"].copy(), data["window_2"].copy()]
+        for k in self.history.__dict__:
+            getattr(self.history, k).extend(data[f"hist_{k}"].tolist())
+        self.history.parcels = [int(v) for v in self.history.parcels]
+        self.history.lost = [int(v) for v in self.history.lost]
+        self.history.stuck = [int(v) for v in self.history.stuck]
+        for k in ("pass_index", "phase", "final_left", "converged", "finished", "alpha", "window_n",
+                  "window_batches", "window_parcels"):
+            setattr(self, k, meta[k])
+        self.timings.update(meta["timings"])
+
+    def _gas_from(self, data, tag):
+        kw = {name: data[f"{tag}_{name}"] for name in self._GAS}
+        return rans.GasField(mesh=self.mesh, gas=self.gas_props, bulk_velocity=self.case.gas.bulk_velocity,
+                             converged=bool(data[f"{tag}_converged"]),
+                             face_flux=data.get(f"{tag}_face_flux"), **kw)
+
+
+def _json_default(v):
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, (np.floating,)):
+        return float(v)
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, tuple):
+        return list(v)
+    return str(v)
+
+
+def _canonical(d):
+    return json.dumps(d, sort_keys=True, default=_json_default)
+
+
+def _atomic_savez(path, arrays):
+    """np.savez to a temporary file in the same directory, fsync, then rename over ``path``."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or Path("."))
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def run(case, out=None, *, resume=False, parcels=None, progress=None):
+    """Run ``case`` to the end and return its dataset; write it to ``out`` if given.
+
+    The checkpoint lives beside the output (``out.nc.checkpoint``).
+    """
+    from .output import coupled_dataset, write_dataset
+
+    t0 = time.perf_counter()
+    ckpt = Path(str(out) + ".checkpoint") if out is not None else None
+    loop = CouplingLoop(case, checkpoint=ckpt, resume=resume, parcels=parcels, progress=progress)
+    loop.run()
+    loop.timings["total"] = loop.timings.get("total", 0.0) + (time.perf_counter() - t0)
+    ds = coupled_dataset(loop)
+    if out is not None:
+        write_dataset(ds, out)
+    return ds
