@@ -186,9 +186,9 @@ class CouplingLoop:
             self._load()
 
     # ------------------------------------------------------------------ gas
-    # implicit under-relaxation of (k, eps) and momentum tried in turn when a periodic gas solve
-    # with strong particle sinks does not converge (the march needs none)
-    _GAS_RELAXATION = ((1.0, 1.0), (0.5, 1.0), (0.3, 0.7))
+    # implicit under-relaxation of (k, eps) and momentum tried in turn when a gas solve with
+    # strong particle sinks fails
+    _GAS_RELAXATION = ((1.0, 1.0), (0.7, 1.0), (0.5, 0.7))
 
     def _solve_gas(self, sources):
         n = self.case.numerics
@@ -207,7 +207,7 @@ class CouplingLoop:
                                         require_convergence=not inner)
                     break
                 except rans.SolverDivergence:
-                    if attempt + 1 == len(self._GAS_RELAXATION) or self.mesh.mode != "periodic":
+                    if attempt + 1 == len(self._GAS_RELAXATION):
                         raise
         finally:
             dt = time.perf_counter() - t0

@@ -93,7 +93,8 @@ class GasField:
     k [m2 s-2]; epsilon [m2 s-3]; nut [m2 s-1]; pressure_gradient (nx,) section-mean -dp/dx
     [Pa m-1]; wall_shear (nx, nt) [Pa]; wall_yplus (nx, nt) y+ of the wall-cell centres;
     residuals: solver residual history (max normalised change per outer iteration);
-    station_iterations (nx,) outer iterations used per station.
+    station_iterations (nx,) outer iterations used per station; production_limited (nx,) cells
+    per station where the production limiter P_k <= 10 rho eps acted in the last iteration.
     """
 
     mesh: PipeMesh
@@ -112,6 +113,7 @@ class GasField:
     converged: bool
     wall_time: float = 0.0
     face_flux: np.ndarray = field(default=None, repr=False)
+    production_limited: np.ndarray = field(default=None, repr=False)
 
     @property
     def nut(self):
@@ -151,6 +153,9 @@ class _State:
 
 
 _VARS = ("ux", "uy", "uz", "k", "eps")
+
+
+PRODUCTION_LIMIT = 10.0  # P_k <= PRODUCTION_LIMIT * rho * eps
 
 
 class _StationSolver:
@@ -196,6 +201,7 @@ class _StationSolver:
             return self._iterate(st, hist, c0, dx, src, laminar, relax_turb)
 
     def _iterate(self, st, hist, c0, dx, src, laminar, relax_turb):
+        self.limited = 0
         sec, rho, mu = self.sec, self.rho, self.mu
         A = sec.area
         wall = sec.wall
@@ -280,6 +286,14 @@ class _StationSolver:
             G2 = (dux[0] ** 2 + dux[1] ** 2 + 2.0 * duz[0] ** 2 + 2.0 * duy[1] ** 2
                   + (duz[1] + duy[0]) ** 2 + 2.0 * dudx**2)
             Pk = mut * G2
+            # production limiter P_k <= 10 rho eps (PHYSICS.md §6.4): inactive in single-phase pipe
+            # flow (P_k/(rho eps) < 3); with strong particle sinks on eps (C_eps3 > C_eps1) it stops
+            # the runaway of nu_t = C_mu k^2/eps.  Cells where it acts are counted.
+            cap = PRODUCTION_LIMIT * rho * st.eps
+            over = Pk > cap
+            if over.any():
+                Pk = np.where(over, cap, Pk)
+                self.limited = max(self.limited, int(np.count_nonzero(over)))
             ut = -uz[wall] * sec.wall_ny + uy[wall] * sec.wall_nz
             Ut = np.sqrt(ux_new[wall] ** 2 + ut**2)
             tau_w = cw * Ut
@@ -296,7 +310,7 @@ class _StationSolver:
             dk, kPN, kNP = sec.transport(flux, gk, "upwind")
             kref = src["k_ref"] if src["k_ref"] is not None else st.k
             eref = src["eps_ref"] if src["eps_ref"] is not None else st.eps
-            dk = dk + c0 * ax + rho * A * eps_sink / st.k + A * np.maximum(-Sk, 0.0) / kref
+            dk = dk + hist.get("c0_k", c0) * ax + rho * A * eps_sink / st.k + A * np.maximum(-Sk, 0.0) / kref
             bk = ax * hist["k"] + A * (Pk + np.maximum(Sk, 0.0))
             if relax_turb < 1.0:  # implicit (Patankar) under-relaxation
                 bk += (1.0 - relax_turb) / relax_turb * dk * st.k
@@ -306,7 +320,7 @@ class _StationSolver:
             # epsilon equation (fixed value in the wall cells)
             ge = sec.interp(mu + mut / ke.SIGMA_EPS)
             de, ePN, eNP = sec.transport(flux, ge, "upwind")
-            de = de + c0 * ax + ke.C_EPS2 * rho * A * st.eps / st.k + A * np.maximum(-Se, 0.0) / eref
+            de = de + hist.get("c0_eps", c0) * ax + ke.C_EPS2 * rho * A * st.eps / st.k + A * np.maximum(-Se, 0.0) / eref
             be = ax * hist["eps"] + A * (ke.C_EPS1 * st.eps / st.k * Pk + np.maximum(Se, 0.0))
             if relax_turb < 1.0:
                 be += (1.0 - relax_turb) / relax_turb * de * st.eps
@@ -494,6 +508,7 @@ def solve(
     tau = np.empty((nx, sec.nt))
     residuals = []
     iters = np.zeros(nx, dtype=np.int64)
+    limited = np.zeros(nx, dtype=np.int64)
     converged = True
     bar = _progress(nx if mesh.mode == "developing" else max_iterations, progress)
 
@@ -544,6 +559,7 @@ def solve(
                 f"after {max_iterations} iterations"
             )
         _store(out, G, tau, 0, st)
+        limited[0] = solver.limited
     else:
         stol = tol if station_tol is None else station_tol
         xc = mesh.x
@@ -568,12 +584,20 @@ def solve(
                 c0 = (1.0 + 2.0 * om) / (1.0 + om)
                 a1, a2 = 1.0 + om, om * om / (1.0 + om)
                 hist = {v: a1 * getattr(prev1, v) - a2 * getattr(prev2, v) for v in _VARS}
+                # k and eps: BDF2 is not positivity preserving; where a steep axial drop (strong
+                # particle sinks) makes its history small or negative, that cell steps backward Euler
+                for v, key in (("k", "c0_k"), ("eps", "c0_eps")):
+                    p1 = getattr(prev1, v)
+                    be = hist[v] <= 0.1 * p1
+                    if be.any():
+                        hist[v] = np.where(be, p1, hist[v])
+                        hist[key] = np.where(be, 1.0, c0)
             st = prev1.copy()
             src = _source_slices(sources, i, n)
             lo, hi = station_iterations
             ok = False
             for it in range(hi):
-                ch = solver.iterate(st, hist, c0, h, src, laminar)
+                ch = solver.iterate(st, hist, c0, h, src, laminar, turbulence_relaxation)
                 residuals.append(ch)
                 if it + 1 >= lo and ch < stol:
                     ok = True
@@ -581,6 +605,7 @@ def solve(
             iters[i] = it + 1
             converged &= ok
             _store(out, G, tau, i, st)
+            limited[i] = solver.limited
             prev2, prev1 = prev1, st
             x_prev, h_prev = xc[i], h
             bar.update(1)
@@ -613,6 +638,7 @@ def solve(
         converged=bool(converged),
         wall_time=time.perf_counter() - t0,
         face_flux=st.flux.copy(),  # cross-section face mass fluxes of the last station (restarts)
+        production_limited=limited,
     )
 
 
