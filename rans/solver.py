@@ -195,6 +195,15 @@ class _StationSolver:
 
     # -------------------------------------------------------------------- one outer iteration
     def iterate(self, st, hist, c0, dx, src, laminar=False, relax_turb=1.0):
+        try:
+            return self._iterate_checked(st, hist, c0, dx, src, laminar, relax_turb)
+        except RuntimeError as err:  # scipy's splu: "Factor is exactly singular"
+            if isinstance(err, SolverDivergence):
+                raise
+            raise SolverDivergence(f"gas solve diverged: singular linear system at x = {self.x:.4g} m "
+                                   f"(station {self.station}): {err}") from None
+
+    def _iterate_checked(self, st, hist, c0, dx, src, laminar=False, relax_turb=1.0):
         """Update ``st`` in place.  hist: dict of upstream combinations (axial derivative
         (c0 phi - hist)/dx); src: dict with 'mx', 'fz', 'fy' [N m-3], 'k', 'eps' cell arrays."""
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
