@@ -1,7 +1,7 @@
 """The ``eulag`` command line (DESIGN.md, "Command line").
 
     eulag run CASE.toml [-o out.nc] [--parcels N] [--resume] [--quiet]
-    eulag plot out.nc [--x 3.56] [-o figs/]                     (not available yet)
+    eulag plot out.nc [--x 3.56] [-o figs/]
     eulag study NAME [CASE.toml] [--quick]                       (not available yet)
     eulag sweep CASES...                                         (not available yet)
 
@@ -58,11 +58,13 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     run.set_defaults(func=cmd_run)
 
-    plot = sub.add_parser("plot", help="figures from a dataset (not available yet)")
-    plot.add_argument("dataset", metavar="OUT.nc")
-    plot.add_argument("--x", type=float)
-    plot.add_argument("-o", "--output")
-    plot.set_defaults(func=_not_yet("eulag plot"))
+    plot = sub.add_parser("plot", help="figures (PNG) from a dataset: section, profiles, convergence")
+    plot.add_argument("dataset", metavar="OUT.nc", help="dataset written by 'eulag run'")
+    plot.add_argument("--x", type=float, metavar="X",
+                      help="axial station [m] (default: the first pipe.sections entry)")
+    plot.add_argument("-o", "--output", metavar="DIR",
+                      help="figure directory (default: <dataset stem>_figures/ beside the dataset)")
+    plot.set_defaults(func=cmd_plot)
 
     study = sub.add_parser("study", help="studies (not available yet)")
     study.add_argument("name")
@@ -147,8 +149,7 @@ def cmd_run(args) -> int:
         raise _Fail(str(exc), EXIT_BAD_INPUT) from None
     out = _output_path(args, case)
     if case.particles is not None:
-        raise _Fail(f"{args.case}: the particle phase is not in eulag {eulag.__version__} yet; "
-                    "only single-phase cases (no [particles]) can be run")
+        return _run_coupled(args, case, out, t_start)
     if args.resume and _finished_run(out, case):
         if not args.quiet:
             print(f"{out}: already a finished run of case {case.name}; nothing to do")
@@ -194,6 +195,85 @@ def cmd_run(args) -> int:
     return EXIT_OK
 
 
+def _run_coupled(args, case: Case, out: Path, t_start: float) -> int:
+    """A gas-particle case: the coupling loop with a checkpoint beside the output."""
+    ckpt = Path(str(out) + ".checkpoint")
+    if args.resume and not ckpt.exists() and _finished_run(out, case):
+        if not args.quiet:
+            print(f"{out}: already a finished run of case {case.name}; nothing to do")
+        return EXIT_OK
+    if not args.resume and ckpt.exists():
+        ckpt.unlink()  # a fresh run starts from scratch
+
+    import rans
+    from eulag.coupling import CouplingError, CouplingLoop
+    from eulag.output import coupled_dataset, write_dataset
+
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=case.numerics.max_passes, desc=case.name, unit="pass", file=sys.stderr,
+                   dynamic_ncols=True)
+
+    def progress(state):
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix_str(f"residual {state.residual:.3g}, -dp/dx {state.pressure_gradient:.4g} Pa/m, "
+                                f"{state.parcels} parcels, {state.phase}")
+
+    try:
+        loop = CouplingLoop(case, checkpoint=ckpt, resume=args.resume, progress=progress)
+        if bar is not None and loop.pass_index:
+            bar.update(loop.pass_index)
+        loop.run()
+    except CouplingError as exc:
+        raise _Fail(f"{exc} (checkpoint of the last complete pass: {ckpt})") from None
+    except rans.SolverDivergence as exc:
+        raise _Fail(f"{exc} (checkpoint of the last complete pass: {ckpt})") from None
+    finally:
+        if bar is not None:
+            bar.close()
+    loop.timings["total"] = time.perf_counter() - t_start
+    ds = coupled_dataset(loop)
+    write_dataset(ds, out)
+    if not args.quiet:
+        print(_coupled_summary(case, loop, ds, out))
+    if not loop.converged:
+        raise _Fail(f"the coupling did not converge in {len(loop.history.residual)} passes (final residual "
+                    f"{loop.history.residual[-1]:.3g}); {out} was written with converged = false")
+    return EXIT_OK
+
+
+def _coupled_summary(case, loop, ds, out) -> str:
+    import numpy as np
+
+    t = loop.timings
+    h = loop.history
+    x = case.pipe.sections[0]
+    try:
+        from eulag import analysis
+
+        strength = f"{analysis.secondary_flow_strength(ds, x):.3g} % of U0 at x = {x:g} m"
+    except Exception:  # noqa: BLE001 - the summary must not fail the run
+        strength = "n/a"
+    lines = [
+        f"eulag {eulag.__version__}: case {case.name} ({case.physics.coupling}, {case.pipe.mode}), "
+        f"Re = {case.reynolds_number:.4g}",
+        f"  passes       {len(h.residual)} ({'converged' if loop.converged else 'NOT converged'}), "
+        f"final residual {h.residual[-1]:.3g}, relaxation {h.relaxation[-1]:g}",
+        f"  -dp/dx       {float(np.mean(ds.pressure_gradient)):.4g} Pa/m (single-phase "
+        f"{float(np.mean(ds.pressure_gradient_single_phase)):.4g}); dp ratio "
+        f"{float(ds.solids_pressure_drop_ratio):.4g}, lambda_Z {float(ds.additional_pressure_loss_coefficient):.4g}",
+        f"  secondary    {strength}",
+        f"  parcels      {int(h.parcels[-1])} per final pass; lost {int(sum(h.lost))}, stuck {int(sum(h.stuck))}",
+        f"  wall time    gas {t.get('gas_solve', 0):.1f} s, Lagrangian {t.get('lagrangian', 0):.1f} s, "
+        f"checkpoints {t.get('checkpoint', 0):.1f} s, total {t.get('total', 0):.1f} s",
+        f"  written      {out}",
+    ]
+    return "\n".join(lines)
+
+
 def _final(field) -> float:
     res = list(field.residuals)
     return float(res[-1]) if res else math.nan
@@ -225,6 +305,43 @@ def _summary(case, mesh, field, out, timings, t_write) -> str:
         f"  written      {out}",
     ]
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------
+# eulag plot
+# ---------------------------------------------------------------------------
+
+def cmd_plot(args) -> int:
+    """Figures of a dataset; bad input (missing/unreadable file, x outside the pipe, -o not
+    a directory) exits 2 before anything is drawn; the figures appear all together or not
+    at all (eulag.plots.plot_all)."""
+    path = Path(args.dataset)
+    if not path.is_file():
+        raise _Fail(f"{path}: no such dataset file", EXIT_BAD_INPUT)
+    if args.output and Path(args.output).exists() and not Path(args.output).is_dir():
+        raise _Fail(f"-o {args.output}: exists and is not a directory; allowed: a directory",
+                    EXIT_BAD_INPUT)
+    import xarray as xr
+
+    from eulag import analysis, plots
+
+    try:
+        with xr.open_dataset(path) as opened:
+            ds = opened.load()
+    except Exception as exc:
+        raise _Fail(f"{path}: cannot be read as a NetCDF dataset ({exc})", EXIT_BAD_INPUT) from None
+    missing = [v for v in ("gas_ux", "y", "z", "cell_area") if v not in ds.variables]
+    if missing:
+        raise _Fail(f"{path}: not an eulag dataset (no {', '.join(missing)})", EXIT_BAD_INPUT)
+    try:
+        analysis.check_station(ds, args.x)
+    except ValueError as exc:
+        raise _Fail(f"--x: {exc}", EXIT_BAD_INPUT) from None
+    ds.encoding["source"] = str(path)
+    written = plots.plot_all(ds, x=args.x, outdir=args.output)
+    for p in written:
+        print(p)
+    return EXIT_OK
 
 
 # ---------------------------------------------------------------------------

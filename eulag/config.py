@@ -470,6 +470,11 @@ class PhysicsConfig(_Section):
     inter_particle_collisions : bool
         Stochastic inter-particle collisions (Sommerfeld 2001). Default: true for four-way
         coupling, false otherwise; true needs four-way coupling.
+    c_eps3 : float
+        C_eps3 of the dissipation source S_eps = C_eps3 (eps/k) S_k [1], in [0, 3] (default 1.8,
+        the seed's). With C_eps3 > C_eps1 = 1.44 the k-eps equations have no positive local
+        equilibrium where the particle sink dominates (README, "Coupling"); an option for
+        sensitivity studies, not a tuning knob.
     """
 
     section: ClassVar[str] = "physics"
@@ -489,6 +494,8 @@ class PhysicsConfig(_Section):
     gravity: bool = _param(BOOLEAN, "gravity", default=True)
     inter_particle_collisions: bool | None = _param(
         BOOLEAN, "inter-particle collisions, needs four-way coupling", default=None)
+    c_eps3: float = _param(NUMBER, "C_eps3 of the particle dissipation source", default=1.8, ge=0.0,
+                           le=3.0)
 
     def _resolve_and_check(self):
         if self.magnus_lift is None:

@@ -308,7 +308,8 @@ class CouplingLoop:
     def _computed_sources(self, sample):
         mom = np.stack([sample.momentum_source(c) for c in range(3)])
         sk = sample.k_source
-        return {"momentum": mom, "k": sk, "epsilon": sample.epsilon_source(self.gas.k, self.gas.epsilon),
+        return {"momentum": mom, "k": sk, "epsilon": sample.epsilon_source(self.gas.k, self.gas.epsilon,
+                                                                    self.case.physics.c_eps3),
                 "se_momentum": np.stack([sample.momentum_source_stderr(c) for c in range(3)]),
                 "se_k": sample.k_source_stderr}
 

@@ -209,9 +209,9 @@ class Sample:
     def k_source_stderr(self):
         return self._sum_stderr(A_SK) / self.volume
 
-    def epsilon_source(self, k, epsilon):
-        """S_ε = C_ε3 (ε/k) S_k [W m-3 s-1] with the gas k, ε (nx, nr, nt)."""
-        return C_EPS3 * epsilon / k * self.k_source
+    def epsilon_source(self, k, epsilon, c_eps3=C_EPS3):
+        """S_ε = C_ε3 (ε/k) S_k [W m-3 s-1] with the gas k, ε (nx, nr, nt); C_ε3 = 1.8 (seed)."""
+        return c_eps3 * epsilon / k * self.k_source
 
     @property
     def visits(self):

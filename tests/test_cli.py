@@ -80,16 +80,7 @@ def test_bad_arguments_exit_2_with_one_line(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == [case]
 
 
-def test_particle_case_is_refused_honestly(tmp_path, capsys):
-    case = tmp_path / "two_phase.toml"
-    case.write_text(TINY + "\n[particles]\ndiameter = 200e-6\ndensity = 1020.0\nmass_loading = 2.2\n")
-    status, out, err = run_cli(capsys, "run", case, "-o", tmp_path / "out.nc")
-    assert status == 1
-    assert len(err.splitlines()) == 1 and "particle phase is not in" in err
-    assert list(tmp_path.iterdir()) == [case]
-
-
-@pytest.mark.parametrize("command", [["plot", "out.nc"], ["study", "scenes"], ["sweep", "a.toml"]])
+@pytest.mark.parametrize("command", [["study", "scenes"], ["sweep", "a.toml"]])
 def test_unimplemented_commands_say_so(capsys, command):
     status, out, err = run_cli(capsys, *command)
     assert status == 1 and len(err.splitlines()) == 1 and "not available" in err
