@@ -1,0 +1,435 @@
+"""Figures from eulag datasets (reads datasets only; never imports the solvers).
+
+* :func:`three_panel` -- the reference paper's section figure: gas axial velocity with the
+  secondary-flow stream lines, particle axial velocity, normalised particle concentration;
+* :func:`vertical_profiles` -- gas and particle axial velocity over the vertical diameter,
+  with measurements when given;
+* :func:`convergence` -- residual (and pressure-gradient) history;
+* :func:`plot_all` -- all of them for one dataset, written together or not at all.
+
+Matplotlib with the Agg canvas and :class:`matplotlib.figure.Figure` objects only: no pyplot
+state, nothing left open. Sections are drawn as seen looking downstream (z right, y up).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import xarray as xr
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
+from matplotlib.ticker import MaxNLocator
+from matplotlib.tri import Triangulation
+
+from eulag import analysis as an
+
+__all__ = ["three_panel", "vertical_profiles", "convergence", "plot_all", "read_reference",
+           "resolve_reference", "default_station"]
+
+
+# ---------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------
+
+def _new_figure(width: float, height: float) -> Figure:
+    fig = Figure(figsize=(width, height), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, path) -> Path:
+    path = Path(path)
+    fig.savefig(path, format="png")
+    return path
+
+
+def _case_name(ds: xr.Dataset) -> str:
+    return str(an.attr(ds, "case.name", "") or ds.attrs.get("title", "") or "eulag dataset")
+
+
+def _station(ds: xr.Dataset, x: float | None) -> float | None:
+    """The x [m] of the station actually plotted (nearest to x), None if the dataset has no x."""
+    if "x" not in ds.dims:
+        return None
+    return float(an.section(ds, x)["x"].values)
+
+
+def _where(ds: xr.Dataset, x: float | None) -> str:
+    xs = _station(ds, x)
+    if xs is None:
+        return ""
+    if ds.sizes["x"] == 1 and an.attr(ds, "pipe.mode") == "periodic":
+        return "fully developed (periodic)"
+    return f"x = {xs:.4g} m"
+
+
+def _has_values(ds: xr.Dataset, var: str, x) -> bool:
+    if var not in ds:
+        return False
+    return bool(np.any(np.isfinite(an._field(ds, var, x))))
+
+
+def _draw_wall(ax, radius: float) -> None:
+    ax.add_patch(Circle((0.0, 0.0), radius, fill=False, color="k", lw=1.2, zorder=5))
+    pad = 1.06 * radius
+    ax.set_xlim(-pad, pad)
+    ax.set_ylim(-pad, pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("z [m]")
+    ax.set_ylabel("y [m]")
+
+
+def _no_data(ax, radius: float, text: str = "no particles") -> None:
+    _draw_wall(ax, radius)
+    ax.text(0.0, 0.0, text, ha="center", va="center", fontsize=11, color="0.3")
+
+
+def _wall_triangulation(geo: an.PolarSection) -> tuple[Triangulation, np.ndarray]:
+    """Structured triangulation of the cell centres, an axis point and wall points.
+
+    Nodes: the nr x nt cell centres (ring-major), then one wall point per sector at its
+    mid-angle (r = R), then the axis point. Each quad between rings j, j+1 (and between the
+    last ring and the wall) and sectors k, k+1 is split into two triangles; ring 0 is a fan
+    around the axis point. Returns the triangulation and a mask over the nodes that marks
+    the extra (wall and axis) points, which the caller gives values to.
+    """
+    nr, nt = geo.nr, geo.nt
+    zz = np.concatenate([geo.z.ravel(), geo.radius * np.cos(geo.theta), [0.0]])
+    yy = np.concatenate([geo.y.ravel(), geo.radius * np.sin(geo.theta), [0.0]])
+    node = np.arange((nr + 1) * nt).reshape(nr + 1, nt)   # row nr: the wall points
+    axis = (nr + 1) * nt
+    k, k1 = np.arange(nt), (np.arange(nt) + 1) % nt
+    tris = [np.column_stack([np.full(nt, axis), node[0, k], node[0, k1]])]
+    for j in range(nr):
+        a, b, c, d = node[j, k], node[j, k1], node[j + 1, k1], node[j + 1, k]
+        tris += [np.column_stack([a, b, c]), np.column_stack([a, c, d])]
+    extra = np.zeros(zz.size, dtype=bool)
+    extra[nr * nt:] = True
+    return Triangulation(zz, yy, np.vstack(tris)), extra
+
+
+def _with_wall(geo: an.PolarSection, values: np.ndarray, wall_value: float = 0.0) -> np.ndarray:
+    """Node values for :func:`_wall_triangulation`: the cells, the wall value on the wall
+    points, and the ring-0 mean on the axis point."""
+    values = np.asarray(values, dtype=float)
+    return np.concatenate([values.ravel(), np.full(geo.nt, wall_value),
+                           [float(np.average(values[0], weights=geo.area[0]))]])
+
+
+def _corners(geo: an.PolarSection) -> tuple[np.ndarray, np.ndarray]:
+    """Cell corners (nr+1, nt+1) in z and y [m] for pcolormesh on the true polar cells."""
+    re, te = geo.r_edges[:, None], geo.theta_edges[None, :]
+    return re * np.cos(te), re * np.sin(te)
+
+
+def _colour_cells(fig, ax, geo, values, label, cmap="viridis"):
+    zc, yc = _corners(geo)
+    mesh = ax.pcolormesh(zc, yc, np.ma.masked_invalid(values), cmap=cmap, shading="flat")
+    fig.colorbar(mesh, ax=ax, shrink=0.8, label=label)
+
+
+# ---------------------------------------------------------------------------
+# the section figure
+# ---------------------------------------------------------------------------
+
+def three_panel(ds: xr.Dataset, x: float | None, path) -> Path:
+    """Write the three-panel section figure at the station nearest ``x`` [m] to ``path`` (PNG).
+
+    (a) gas axial velocity u_x [m s-1], filled contours on the cell centres plus the wall
+    (u_x = 0), with contour lines of the secondary-flow stream function
+    (:func:`eulag.analysis.stream_function`; solid: counter-clockwise, dashed: clockwise as
+    seen looking downstream); (b) particle axial velocity [m s-1] and (c) particle mass
+    concentration divided by its section mean [1], both coloured per cell on the true polar
+    cells (blank where no particle passed). Panels (b) and (c) say "no particles" if the
+    variables are absent or all NaN.
+    """
+    geo = an.polar_section(ds)
+    R = geo.radius
+    fig = _new_figure(14.0, 4.8)
+    ax_a, ax_b, ax_c = fig.subplots(1, 3)
+
+    # (a) gas
+    tri, _ = _wall_triangulation(geo)
+    ux = _with_wall(geo, an._field(ds, "gas_ux", x))   # no slip: u_x = 0 on the wall
+    filled = ax_a.tricontourf(tri, ux, levels=16, cmap="viridis")
+    fig.colorbar(filled, ax=ax_a, shrink=0.8, label="gas $u_x$ [m s$^{-1}$]")
+    note = "no in-plane velocity in the dataset"
+    if "gas_uy" in ds and "gas_uz" in ds:
+        strength = an.secondary_flow_strength(ds, x)
+        n_cells = an.recirculation_cells(ds, x)
+        if n_cells > 0:
+            psi = an.stream_function(ds, x)
+            psi_all = _with_wall(geo, psi)                  # psi = 0 on the wall
+            top = float(np.abs(psi).max())
+            levels = np.concatenate([np.linspace(-top, -0.1 * top, 5), np.linspace(0.1 * top, top, 5)])
+            ax_a.tricontour(tri, psi_all, levels=np.unique(levels), colors="w", linewidths=0.8,
+                            negative_linestyles="dashed")
+            note = f"secondary flow: max {strength:.3g} % of $U_b$, {n_cells} cells"
+        else:
+            note = f"secondary flow: max {strength:.2g} % of $U_b$ (none)"
+    ax_a.set_title(f"(a) gas axial velocity\n{note}", fontsize=10)
+    _draw_wall(ax_a, R)
+
+    # (b) particle axial velocity
+    if _has_values(ds, "particle_ux", x):
+        _colour_cells(fig, ax_b, geo, an._field(ds, "particle_ux", x),
+                      "particle $u_x$ [m s$^{-1}$]")
+        _draw_wall(ax_b, R)
+    else:
+        _no_data(ax_b, R)
+    ax_b.set_title("(b) particle axial velocity", fontsize=10)
+
+    # (c) particle concentration / section mean
+    if _has_values(ds, "particle_concentration", x):
+        c = np.nan_to_num(an._field(ds, "particle_concentration", x))  # no particles: 0 kg m-3
+        mean = float((c * geo.area).sum() / geo.area.sum())
+        if mean > 0.0:
+            _colour_cells(fig, ax_c, geo, np.where(c > 0, c / mean, np.nan),
+                          r"$c / \bar{c}$ [1]", cmap="magma")
+            _draw_wall(ax_c, R)
+            ax_c.set_title(f"(c) particle concentration / section mean\n"
+                           rf"$\bar{{c}}$ = {mean:.3g} kg m$^{{-3}}$", fontsize=10)
+        else:
+            _no_data(ax_c, R)
+            ax_c.set_title("(c) particle concentration / section mean", fontsize=10)
+    else:
+        _no_data(ax_c, R)
+        ax_c.set_title("(c) particle concentration / section mean", fontsize=10)
+
+    where = _where(ds, x) or "the only station"
+    fig.suptitle(f"{_case_name(ds)}: cross-section, {where} (looking downstream, gravity -y)")
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------
+# vertical profiles and reference data
+# ---------------------------------------------------------------------------
+
+_Y_COLUMNS = {"y_over_D": 1.0, "y_over_R": 0.5}   # column -> factor to y/D
+_U_COLUMNS = ("u_over_ub", "U_over_Ub", "U_over_Uref", "u")
+
+
+def read_reference(path) -> dict[str, dict[str, np.ndarray]]:
+    """Measured profiles from a commented CSV file (lines starting with '#' are skipped).
+
+    Columns: ``phase`` (gas / particle; absent: gas), ``y_over_R`` or ``y_over_D``, and the
+    normalised axial velocity ``U_over_Uref`` (or ``u_over_ub``). Returns
+    ``{phase: {"y_over_D": array [1], "u": array [1], "column": name of the velocity column}}``.
+    The file's header comments state the provenance and the velocity scale; read them.
+    """
+    path = Path(path)
+    with open(path, newline="") as fh:
+        lines = fh.readlines()
+    rows = list(csv.DictReader([ln for ln in lines if not ln.lstrip().startswith("#")]))
+    if not rows:
+        raise ValueError(f"{path}: no data rows")
+    table = {key: [row[key] for row in rows] for key in rows[0]}
+    return _table_to_profiles(table, str(path))
+
+
+def _table_to_profiles(table: Mapping[str, Any], where: str) -> dict[str, dict[str, np.ndarray]]:
+    """{phase: {"y_over_D", "u"}} from a table (dict of equal-length columns)."""
+    ycol = next((c for c in _Y_COLUMNS if c in table), None)
+    ucol = next((c for c in _U_COLUMNS if c in table), None)
+    if ycol is None or ucol is None:
+        raise ValueError(f"{where}: reference data need a column y_over_R or y_over_D and one of "
+                         f"{', '.join(_U_COLUMNS)}; found {', '.join(table)}")
+    y = np.asarray(table[ycol], dtype=float) * _Y_COLUMNS[ycol]
+    u = np.asarray(table[ucol], dtype=float)
+    phase = np.asarray(table["phase"], dtype=str) if "phase" in table else np.full(y.size, "gas")
+    out = {}
+    for name in np.unique(phase):
+        sel = phase == name
+        out[str(name)] = {"y_over_D": y[sel], "u": u[sel], "column": ucol}
+    return out
+
+
+def _reference_profiles(reference) -> dict[str, dict[str, np.ndarray]]:
+    """Normalise ``reference``: a CSV path, a table (dict of columns), or {phase: table}."""
+    if isinstance(reference, (str, os.PathLike)):
+        return read_reference(reference)
+    if not isinstance(reference, Mapping):
+        raise TypeError(f"reference: expected a path or a dict of arrays, got {type(reference).__name__}")
+    if all(isinstance(v, Mapping) for v in reference.values()):
+        out = {}
+        for phase, table in reference.items():
+            out.update({phase: p for p in _table_to_profiles(table, f"reference[{phase!r}]").values()})
+        return out
+    return _table_to_profiles(reference, "reference")
+
+
+def resolve_reference(ds: xr.Dataset, dataset_path=None) -> Path | None:
+    """The measurement file named by the case attribute ``pipe.reference_data``, or None.
+
+    A relative name is looked up beside the case file (attribute ``case_file``), in eulag's
+    ``cases/`` directory, beside the dataset, and in ``$EULAG_SHARED_DATA``; the first file
+    that exists wins. None when the case names no file or none is found.
+    """
+    name = an.attr(ds, "pipe.reference_data")
+    if not name or str(name).strip().lower() in ("none", ""):
+        return None
+    name = Path(str(name))
+    if name.is_absolute():
+        return name if name.is_file() else None
+    dirs = []
+    if ds.attrs.get("case_file"):
+        dirs.append(Path(str(ds.attrs["case_file"])).parent)
+    try:
+        import cases
+        dirs.append(Path(cases.__file__).parent)
+    except ImportError:  # pragma: no cover - cases is part of the distribution
+        pass
+    source = dataset_path or ds.encoding.get("source")
+    if source:
+        dirs.append(Path(source).parent)
+    if os.environ.get("EULAG_SHARED_DATA"):
+        dirs.append(Path(os.environ["EULAG_SHARED_DATA"]))
+    for d in dirs:
+        if (d / name).is_file():
+            return d / name
+    return None
+
+
+def vertical_profiles(ds: xr.Dataset, x: float | None, path, reference=None) -> Path:
+    """Write the vertical-diameter profiles of the axial velocity at the station nearest x.
+
+    Gas and particle u_x divided by the bulk velocity U_b (``gas.bulk_velocity``) on the
+    horizontal axis, y/D on the vertical axis (top of the pipe at +0.5), from
+    :func:`eulag.analysis.vertical_profile`; the gas curve ends at the wall with u_x = 0.
+    ``reference``: measured points (a CSV path such as
+    ``tsuji_morikawa_1982_horizontal_eta2.2.csv``, a table dict of columns ``phase``,
+    ``y_over_R`` | ``y_over_D``, ``U_over_Uref`` | ``u_over_ub``, or ``{phase: table}``),
+    drawn as markers with the velocity as given in the file.
+    """
+    geo = an.polar_section(ds)
+    D = 2.0 * geo.radius
+    ub = an.bulk_velocity(ds)
+    fig = _new_figure(5.2, 5.6)
+    ax = fig.subplots()
+    y, u = an.vertical_profile(ds, "gas_ux", x)
+    ax.plot(np.concatenate([[0.0], u, [0.0]]) / ub, np.concatenate([[-D / 2], y, [D / 2]]) / D,
+            "-", color="C0", label="gas (eulag)")
+    if _has_values(ds, "particle_ux", x):
+        y, u = an.vertical_profile(ds, "particle_ux", x)
+        ax.plot(u / ub, y / D, "--", color="C3", label="particles (eulag)")
+    if reference is not None:
+        marks = {"gas": ("o", "C0"), "particle": ("s", "C3")}
+        for phase, prof in _reference_profiles(reference).items():
+            m, c = marks.get(phase, ("^", "k"))
+            ax.plot(prof["u"], prof["y_over_D"], m, mfc="none", color=c,
+                    label=f"{phase}, measured ({prof['column']})")
+    ax.axhline(0.0, color="0.8", lw=0.6)
+    ax.set_ylim(-0.5, 0.5)
+    ax.set_xlim(left=0.0)
+    ax.set_xlabel(rf"$u_x / U_b$ [1]   ($U_b$ = {ub:.3g} m s$^{{-1}}$)")
+    ax.set_ylabel("y / D [1]  (top +0.5, bottom -0.5)")
+    ax.legend(fontsize=8, loc="best")
+    ax.set_title(f"{_case_name(ds)}\nvertical diameter, {_where(ds, x)}", fontsize=10)
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------
+# convergence
+# ---------------------------------------------------------------------------
+
+def convergence(ds: xr.Dataset, path) -> Path | None:
+    """Write the convergence history: coupling residual per pass (log scale), the gas-solver
+    residual history ``gas_residual`` and any ``pressure_gradient*`` variable over
+    ``iteration`` [Pa m-1], each in its own panel when present. Returns None (and writes
+    nothing) if the dataset holds none of them."""
+    panels = []
+    if "residual" in ds and ds["residual"].size:
+        panels.append(("residual", "coupling pass", "coupling residual [1]", True))
+    if "gas_residual" in ds and ds["gas_residual"].size:
+        panels.append(("gas_residual", "gas-solver iteration", "gas residual [1]", True))
+    for name in ds.data_vars:
+        if name.startswith("pressure_gradient") and ds[name].dims == ("iteration",):
+            panels.append((name, "coupling pass", f"{name} [Pa m$^{{-1}}$]", False))
+    if not panels:
+        return None
+    fig = _new_figure(4.6 * len(panels), 4.0)
+    axes = np.atleast_1d(fig.subplots(1, len(panels)))
+    for ax, (name, xlabel, ylabel, log) in zip(axes, panels):
+        v = np.asarray(ds[name].values, dtype=float)
+        dim = ds[name].dims[0]
+        it = np.asarray(ds[dim].values) if dim in ds.coords else np.arange(v.size)
+        positive = np.where(v > 0, v, np.nan) if log else v
+        ax.plot(it, positive, "o-" if v.size < 50 else "-", ms=3)
+        if log and np.any(v > 0):
+            ax.set_yscale("log")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.grid(True, which="both", alpha=0.3)
+    fig.suptitle(f"{_case_name(ds)}: convergence (converged = {ds.attrs.get('converged', '?')})")
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------
+# everything
+# ---------------------------------------------------------------------------
+
+def default_station(ds: xr.Dataset) -> float | None:
+    """The first ``pipe.sections`` entry [m] of the case attributes, else the last x."""
+    sections = an.attr(ds, "pipe.sections")
+    if sections is not None and np.size(sections):
+        return float(np.atleast_1d(sections)[0])
+    return float(ds["x"].values[-1]) if "x" in ds.dims else None
+
+
+def plot_all(ds_or_path, x: float | None = None, outdir=None) -> list[Path]:
+    """Write all figures of a dataset (PNG) and return their paths.
+
+    ``ds_or_path``: an xarray Dataset or a NetCDF path. ``x`` [m]: the section (default
+    :func:`default_station`); ValueError if it lies outside the pipe. ``outdir``: default
+    ``<dataset stem>_figures/`` beside the dataset (``<case name>_figures/`` in the current
+    directory for an in-memory dataset). Files: ``<stem>_section_x<x>.png``,
+    ``<stem>_profiles_x<x>.png`` and, when there is a history, ``<stem>_convergence.png``.
+    The figures are drawn in a temporary directory and moved into ``outdir`` only when all
+    of them succeeded, so an error leaves no partial set (and no new ``outdir``).
+    """
+    source = None
+    if isinstance(ds_or_path, (str, os.PathLike)):
+        source = Path(ds_or_path)
+        with xr.open_dataset(source) as opened:
+            ds = opened.load()
+    else:
+        ds = ds_or_path
+        if ds.encoding.get("source"):
+            source = Path(ds.encoding["source"])
+    stem = source.stem if source is not None else (_case_name(ds).replace(" ", "_") or "eulag")
+    if outdir is None:
+        outdir = (source.parent if source is not None else Path(".")) / f"{stem}_figures"
+    outdir = Path(outdir)
+    if x is None:
+        x = default_station(ds)
+    an.check_station(ds, x)
+    xs = _station(ds, x)
+    tag = f"_x{xs:.4g}m" if xs is not None and ds.sizes.get("x", 1) > 1 else ""
+
+    reference = resolve_reference(ds, source)
+    parent = outdir.parent if str(outdir.parent) else Path(".")
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=parent))
+    try:
+        made = [three_panel(ds, x, tmp / f"{stem}_section{tag}.png"),
+                vertical_profiles(ds, x, tmp / f"{stem}_profiles{tag}.png", reference=reference)]
+        conv = convergence(ds, tmp / f"{stem}_convergence.png")
+        if conv is not None:
+            made.append(conv)
+        outdir.mkdir(parents=True, exist_ok=True)
+        written = []
+        for p in made:
+            target = outdir / p.name
+            os.replace(p, target)
+            written.append(target)
+        return written
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
