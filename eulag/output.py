@@ -18,7 +18,7 @@ import xarray as xr
 
 import eulag
 
-__all__ = ["gas_dataset", "write_dataset", "CONVENTIONS"]
+__all__ = ["gas_dataset", "coupled_dataset", "write_dataset", "atomic_write", "CONVENTIONS"]
 
 CONVENTIONS = "CF-1.10"
 
@@ -132,28 +132,18 @@ def gas_dataset(case, mesh, field, *, timings: Mapping[str, float] | None = None
     return xr.Dataset(data, coords=coords, attrs=glob)
 
 
-def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:
-    """Write ``ds`` to NetCDF4 at ``path`` atomically.
+def atomic_write(path: str | os.PathLike, write) -> Path:
+    """Call ``write(tmp_path)`` on a temporary file beside ``path``, fsync it, rename it over ``path``.
 
-    The data go to a temporary file in the same directory, are flushed to disk, and the
-    file is renamed over ``path`` (``os.replace``). On any failure the temporary file is
-    removed and ``path`` is left as it was.
+    On any failure (including KeyboardInterrupt) the temporary file is removed and ``path``
+    is left as it was, so a reader never sees a partial file.
     """
     path = Path(path)
     directory = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     os.close(fd)
     try:
-        encoding = {}
-        for name, var in ds.variables.items():
-            enc: dict[str, Any] = {}
-            if name in ds.coords:
-                enc["_FillValue"] = None
-            if var.size >= 4096 and var.dtype.kind == "f":
-                enc.update(zlib=True, complevel=1)
-            if enc:
-                encoding[name] = enc
-        ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
+        write(tmp)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         umask = os.umask(0)
@@ -167,6 +157,21 @@ def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:
             pass
         raise
     return path
+
+
+def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:
+    """Write ``ds`` to NetCDF4 at ``path`` atomically (:func:`atomic_write`)."""
+    encoding = {}
+    for name, var in ds.variables.items():
+        enc: dict[str, Any] = {}
+        if name in ds.coords:
+            enc["_FillValue"] = None
+        if var.size >= 4096 and var.dtype.kind == "f":
+            enc.update(zlib=True, complevel=1)
+        if enc:
+            encoding[name] = enc
+    return atomic_write(path, lambda tmp: ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4",
+                                                       encoding=encoding))
 
 
 def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Dataset:

@@ -37,6 +37,7 @@ from numba import njit
 
 from collisions.conf import JIT_FLAGS, KERNEL_FLAGS
 from rans import kepsilon as ke
+from rans.mesh import cell_index
 
 __all__ = ["FieldTable", "interpolate", "NF", "F_UX", "F_UY", "F_UZ", "F_K", "F_EPS",
            "F_WX", "F_WY", "F_WZ", "F_DKX", "F_DKY", "F_DKZ", "NT", "viscous_edge_yplus"]
@@ -167,28 +168,6 @@ def _blend_section(tab, i, j, k0, k1, wt, f, out, scale):
 
 
 @njit(**KERNEL_FLAGS)
-def _cell_of(x, r, th, nx, nr, nt, r_edges, length):
-    """Cell (i, j, k) of a point at axial x, radius r, polar angle th in [0, 2π) (as locate_cell)."""
-    if x < 0.0 or x > length or r > r_edges[nr]:
-        return -1, -1, -1
-    i = int(x / length * nx)
-    if i >= nx:
-        i = nx - 1
-    lo = 0
-    hi = nr
-    while hi - lo > 1:
-        mid = (lo + hi) >> 1
-        if r_edges[mid] <= r:
-            lo = mid
-        else:
-            hi = mid
-    k = int(th / (2.0 * math.pi) * nt)
-    if k >= nt:
-        k = nt - 1
-    return i, lo, k
-
-
-@njit(**KERNEL_FLAGS)
 def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out):
     """Gas fields at the point (x, y, z) [m] into ``out`` (NF,); see the module docstring.
 
@@ -229,7 +208,7 @@ def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out):
     k0 = int(kf) % nt
     k1 = (k0 + 1) % nt
     r = math.sqrt(y * y + z * z)
-    ci, cj, ck = _cell_of(x, r, th, nx, nr, nt, r_edges, length)
+    ci, cj, ck = cell_index(x, r, th, length, nx, r_edges, nt)
     dwx = 0.0 if (nx == 1 or wx <= 0.0 or wx >= 1.0) else 1.0 / (xc[1] - xc[0])
     dwt = nt / (2.0 * math.pi)  # d wt / d theta
     if r < rc[nr - 1]:

@@ -59,7 +59,6 @@ from collisions.random import (RNG_DRAW, RNG_PARCEL, RNG_PASS, RNG_SEED, RNG_STA
                                next_normal_pair, next_uniform_pair)
 from collisions.wall import (WALL_REBOUND, WALL_ROLLING, WALL_SLIDING, WallOptions,
                              make_wall_collision)
-from rans.mesh import locate_cell
 
 from . import forces as fl
 from .fields import F_DKX, F_EPS, F_K, F_UX, F_WX, NF, interpolate

@@ -21,10 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from collisions.interparticle import mean_collision_frequency, sommerfeld_2001_correlation
+from collisions.interparticle import mean_collision_frequency
 from collisions.wall import minimum_bounce_speed
 
-from . import forces as fl
 from .fields import FieldTable
 from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker
 from .layout import (A_J, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,

@@ -29,7 +29,7 @@ import numba
 import numpy as np
 from fluids.friction import Colebrook
 
-__all__ = ["PipeMesh", "locate_cell", "radial_edges", "ring_centre_radius"]
+__all__ = ["PipeMesh", "cell_index", "locate_cell", "radial_edges", "ring_centre_radius"]
 
 
 def ring_centre_radius(r0, r1):
@@ -96,13 +96,10 @@ def radial_edges(radius, radial_cells, wall_thickness):
 
 
 @numba.njit(cache=True)
-def locate_cell(x, y, z, length, nx, r_edges, nt):
-    """Cell indices (i, j, k) containing the point (x, y, z) [m], or i = -1 outside.
-
-    Axial cells are uniform; ring j from a binary search of ``r_edges``; sector k from
-    the polar angle (uniform sectors starting at theta = 0).  O(log nr) per call.
-    """
-    r = math.sqrt(y * y + z * z)
+def cell_index(x, r, th, length, nx, r_edges, nt):
+    """Cell indices (i, j, k) of a point at axial x [m], radius r [m] and polar angle
+    th in [0, 2 pi) [rad]; i = -1 outside the pipe.  Axial cells are uniform; ring j from a
+    binary search of ``r_edges``; sector k from th (uniform sectors starting at theta = 0)."""
     nr = r_edges.shape[0] - 1
     if x < 0.0 or x > length or r > r_edges[nr]:
         return -1, -1, -1
@@ -117,13 +114,22 @@ def locate_cell(x, y, z, length, nx, r_edges, nt):
             lo = mid
         else:
             hi = mid
-    th = math.atan2(y, z)
-    if th < 0.0:
-        th += 2.0 * math.pi
     k = int(th / (2.0 * math.pi) * nt)
     if k >= nt:
         k = nt - 1
     return i, lo, k
+
+
+@numba.njit(cache=True)
+def locate_cell(x, y, z, length, nx, r_edges, nt):
+    """Cell indices (i, j, k) containing the point (x, y, z) [m], or i = -1 outside.
+
+    O(log nr) per call (see ``cell_index``).
+    """
+    th = math.atan2(y, z)
+    if th < 0.0:
+        th += 2.0 * math.pi
+    return cell_index(x, math.sqrt(y * y + z * z), th, length, nx, r_edges, nt)
 
 
 @dataclass(frozen=True, eq=False)

@@ -6,8 +6,6 @@
   uniform radial concentration (Thomson 1987's criterion), with the drift correction.
 """
 
-import math
-
 import numpy as np
 import pytest
 
@@ -15,7 +13,7 @@ from particles import ParticleSpec, PhysicsOptions, TrackSettings, track
 from particles.layout import A_WN
 from rans import PipeMesh
 
-from .particle_support import AIR, developing_pipe, uniform_field
+from .particle_support import developing_pipe, uniform_field
 
 TRACER = PhysicsOptions(saffman_mei_lift=False, magnus_lift=False, rotation=False, gravity=False,
                         inter_particle_collisions=False)

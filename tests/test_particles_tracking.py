@@ -9,7 +9,6 @@ import pytest
 from particles import FieldTable, ParticleSpec, PhysicsOptions, TrackSettings, track
 from particles.fields import F_EPS, F_K, F_UX, F_WX, F_WZ, YSTAR_VISCOUS
 from particles.kernel import MAX_SEGMENTS, walk_segment
-from particles.layout import A_J, A_SK
 from rans import PipeMesh, locate_cell
 from rans import kepsilon as ke
 
