@@ -233,7 +233,7 @@ def vorticity(ds: xr.Dataset, x: float | None = None) -> np.ndarray:
     geo = polar_section(ds)
     uy, uz = _field(ds, "gas_uy", x), _field(ds, "gas_uz", x)
     re, r, te = geo.r_edges, geo.r, geo.theta_edges
-    nr, nt = geo.nr, geo.nt
+    nt = geo.nt
 
     # u_theta at the radial faces r_edges[1..nr] along each sector mid-ray
     w = ((re[1:-1] - r[:-1]) / (r[1:] - r[:-1]))[:, None]
