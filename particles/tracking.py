@@ -35,7 +35,8 @@ from .layout import (A_J, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, 
                      P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, W_ANGLE, W_COUNT, W_SPEED,
                      Layout)
 
-__all__ = ["ParticleSpec", "TrackSettings", "Sample", "track", "batch_plan", "GRAVITY"]
+__all__ = ["ParticleSpec", "TrackSettings", "Sample", "track", "batch_plan", "GRAVITY", "PassInputs",
+           "prepare_pass", "run_superbatch", "fold_superbatches", "make_sample"]
 
 GRAVITY = 9.81  # m s-2
 C_EPS3 = 1.8  # S_eps = C_eps3 (eps/k) S_k (seed; PHYSICS.md §5.1, §12)
@@ -371,6 +372,113 @@ def parameters(spec, gas_props, mesh, settings=TrackSettings(), parcels=1, gravi
     return prm
 
 
+@dataclass(frozen=True, eq=False)
+class PassInputs:
+    """Everything a super-batch of one pass needs, as plain picklable data (no mesh, no gas).
+
+    Built once per pass by :func:`prepare_pass` on the driver; shipped once to every worker of
+    a distributed run; :func:`run_superbatch` tracks one super-batch from it.
+    physics is the effective option set (inter-particle collisions dropped when the pass has
+    no cell statistics); starts/counts/supers are :func:`batch_plan`'s; prm the runtime
+    parameter vector (:func:`parameters`); size the flat result length (layout.Layout).
+    """
+
+    table: FieldTable
+    stats: np.ndarray
+    prm: np.ndarray
+    physics: PhysicsOptions
+    seed: int
+    pass_index: int
+    parcels: int
+    starts: np.ndarray
+    counts: np.ndarray
+    supers: tuple
+    nt: int
+    ncell: int
+    size: int
+
+    @property
+    def superbatches(self):
+        """Number of super-batches of the pass."""
+        return len(self.supers)
+
+
+def prepare_pass(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, pass_index=0,
+                 stats=None, settings=TrackSettings(), table=None):
+    """The :class:`PassInputs` of one pass (arguments as :func:`track`)."""
+    if table is None:
+        table = FieldTable.from_gas(mesh, gas)
+    nx, nr, nt = mesh.shape
+    ncell = nx * nr * nt
+    lay = Layout(ncell, nx * nt)
+    starts, counts, supers = batch_plan(parcels, settings)
+    use_pp = physics.inter_particle_collisions and stats is not None
+    if physics.inter_particle_collisions and not use_pp:
+        physics = PhysicsOptions(**{**physics.__dict__, "inter_particle_collisions": False})
+    if stats is None:
+        stats = np.zeros((ncell, NCS))
+    prm = parameters(spec, gas.gas, mesh, settings, parcels, physics.gravity)
+    return PassInputs(table=table, stats=stats, prm=prm, physics=physics, seed=int(seed),
+                      pass_index=int(pass_index), parcels=int(parcels), starts=starts, counts=counts,
+                      supers=tuple(supers), nt=nt, ncell=ncell, size=lay.size)
+
+
+def run_superbatch(inputs, isb, keep_states=False):
+    """Track super-batch ``isb`` of a pass: (totals, squares, cross[, states]) of its batches.
+
+    totals Σ_b s_b and squares Σ_b s_b² (flat, layout.Layout), cross Σ_b s_b · s_b[mass weight]
+    (cell accumulators); the batches are folded in batch order, whatever the thread count.
+    """
+    _, track_superbatch = make_tracker(inputs.physics)
+    sl = inputs.supers[isb]
+    table = inputs.table
+    t_s = np.zeros(inputs.size)
+    q_s = np.zeros(inputs.size)
+    c_s = np.zeros(inputs.ncell * NACC)
+    st_s = np.empty((int(inputs.counts[sl].sum()), NSTATE))
+    track_superbatch(inputs.starts[sl], inputs.counts[sl], inputs.seed, inputs.pass_index,
+                     table.x_edges, table.r_edges, table.r_centres, inputs.nt, table.length,
+                     table.radius, table.nu, table.x_centres, table.values, table.axis, inputs.stats,
+                     inputs.prm, t_s, q_s, c_s, inputs.ncell, st_s)
+    if keep_states:
+        return t_s, q_s, c_s, st_s
+    return t_s, q_s, c_s
+
+
+def fold_superbatches(inputs, results):
+    """Sum super-batch results (an iterable in super-batch index order) → (totals, squares, cross).
+
+    The order of the sums is what makes a pass bit-identical however it was run; callers that
+    receive results out of order must reorder them first.
+    """
+    totals = np.zeros(inputs.size)
+    squares = np.zeros(inputs.size)
+    cross = np.zeros(inputs.ncell * NACC)
+    for r in results:
+        totals += r[0]
+        squares += r[1]
+        cross += r[2]
+    return totals, squares, cross
+
+
+def make_sample(mesh, spec, inputs, totals, squares, cross, wall_time=0.0, states=None):
+    """The :class:`Sample` of a pass from its folded sums (batch variances and covariances)."""
+    ncell = inputs.ncell
+    size = inputs.size
+    nb = len(inputs.starts)
+    if nb > 1:
+        var = nb / (nb - 1.0) * (squares - totals * totals / nb)
+        wm = totals[: ncell * NACC].reshape(ncell, NACC)[:, A_WM:A_WM + 1]
+        cov = (nb / (nb - 1.0) * (cross.reshape(ncell, NACC) - totals[: ncell * NACC].reshape(ncell, NACC)
+                                  * wm / nb)).ravel()
+    else:
+        var = np.full(size, np.nan)
+        cov = np.full(ncell * NACC, np.nan)
+    return Sample(mesh=mesh, spec=spec, parcels=inputs.parcels, batches=nb, total=totals, var=var,
+                  cov=np.concatenate((cov, np.zeros(size - cov.size))), wall_time=wall_time,
+                  states=states)
+
+
 def track(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, pass_index=0,
           stats=None, settings=TrackSettings(), table=None, superbatches=None,
           keep_states=False):
@@ -383,53 +491,26 @@ def track(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, pass_in
     (None: no collisions in this pass);  table : a prebuilt FieldTable (else built from gas);
     superbatches : indices of the super-batches to run (None: all; for distributed runs);
     keep_states : keep the final parcel states (parcels, kernel.NSTATE) in ``Sample.states``.
+
+    The pieces (:func:`prepare_pass`, :func:`run_superbatch`, :func:`fold_superbatches`,
+    :func:`make_sample`) are what a distributed tracker (eulag.distributed) runs remotely.
     """
     import time
 
     t0 = time.perf_counter()
-    if table is None:
-        table = FieldTable.from_gas(mesh, gas)
-    nx, nr, nt = mesh.shape
-    ncell = nx * nr * nt
-    lay = Layout(ncell, nx * nt)
-    starts, counts, supers = batch_plan(parcels, settings)
-    use_pp = physics.inter_particle_collisions and stats is not None
-    if physics.inter_particle_collisions and not use_pp:
-        physics = PhysicsOptions(**{**physics.__dict__, "inter_particle_collisions": False})
-    if stats is None:
-        stats = np.zeros((ncell, NCS))
-    _, track_superbatch = make_tracker(physics)
-    prm = parameters(spec, gas.gas, mesh, settings, parcels, physics.gravity)
-    totals = np.zeros(lay.size)
-    squares = np.zeros(lay.size)
-    cross = np.zeros(ncell * NACC)
-    states = []
-    chosen = range(len(supers)) if superbatches is None else superbatches
-    for isb in chosen:
-        sl = supers[isb]
-        t_s = np.zeros(lay.size)
-        q_s = np.zeros(lay.size)
-        c_s = np.zeros(ncell * NACC)
-        st_s = np.empty((int(counts[sl].sum()), NSTATE))
-        track_superbatch(starts[sl], counts[sl], int(seed), int(pass_index), table.x_edges,
-                         table.r_edges, table.r_centres, nt, table.length, table.radius, table.nu,
-                         table.x_centres, table.values, table.axis, stats, prm, t_s, q_s, c_s, ncell,
-                         st_s)
-        if keep_states:
-            states.append(st_s)
-        totals += t_s
-        squares += q_s
-        cross += c_s
-    nb = len(starts)
-    if nb > 1:
-        var = nb / (nb - 1.0) * (squares - totals * totals / nb)
-        wm = totals[: ncell * NACC].reshape(ncell, NACC)[:, A_WM:A_WM + 1]
-        cov = (nb / (nb - 1.0) * (cross.reshape(ncell, NACC) - totals[: ncell * NACC].reshape(ncell, NACC)
-                                  * wm / nb)).ravel()
-    else:
-        var = np.full(lay.size, np.nan)
-        cov = np.full(ncell * NACC, np.nan)
-    return Sample(mesh=mesh, spec=spec, parcels=int(parcels), batches=nb, total=totals, var=var,
-                  cov=np.concatenate((cov, np.zeros(lay.size - cov.size))),
-                  wall_time=time.perf_counter() - t0,
-                  states=np.concatenate(states) if keep_states else None)
+    inputs = prepare_pass(mesh, gas, spec, physics, parcels=parcels, seed=seed, pass_index=pass_index,
+                          stats=stats, settings=settings, table=table)
+    chosen = range(inputs.superbatches) if superbatches is None else superbatches
+    kept = []
+
+    def results():  # one super-batch in memory at a time
+        for isb in chosen:
+            r = run_superbatch(inputs, isb, keep_states)
+            if keep_states:
+                kept.append(r[3])
+            yield r
+
+    totals, squares, cross = fold_superbatches(inputs, results())
+    states = np.concatenate(kept) if keep_states else None
+    return make_sample(mesh, spec, inputs, totals, squares, cross,
+                       wall_time=time.perf_counter() - t0, states=states)
