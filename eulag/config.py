@@ -475,6 +475,13 @@ class PhysicsConfig(_Section):
         the seed's). With C_eps3 > C_eps1 = 1.44 the k-eps equations have no positive local
         equilibrium where the particle sink dominates (README, "Coupling"); an option for
         sensitivity studies, not a tuning knob.
+    k_source_scaling : str
+        How the sampled turbulence source S_k = -<u'_F . J> enters the gas: ``"seen-energy"``
+        (default) rescales it per cell by k / k_seen, the gas k over the energy 1/2<|u'_F|^2>
+        of the fluctuations the particles saw there (identical where the Langevin model is
+        consistent with the gas k; where particles carry their fluid-velocity memory into a
+        pocket the sink has already drained, it stops the sink from feeding on energy the gas
+        no longer has); ``"none"``: the seed's estimator as sampled.
     """
 
     section: ClassVar[str] = "physics"
@@ -496,6 +503,8 @@ class PhysicsConfig(_Section):
         BOOLEAN, "inter-particle collisions, needs four-way coupling", default=None)
     c_eps3: float = _param(NUMBER, "C_eps3 of the particle dissipation source", default=1.8, ge=0.0,
                            le=3.0)
+    k_source_scaling: str = _param(STRING, "scaling of the sampled turbulence source",
+                                   default="seen-energy", choices=("seen-energy", "none"))
 
     def _resolve_and_check(self):
         if self.magnus_lift is None:

@@ -19,7 +19,8 @@ Convergence ("no longer changing beyond noise"): per cell the change of the rela
 sqrt term), with a floor of 1 % of the RMS source for poorly sampled cells; the residual of a
 pass is the RMS of these ratios over the cells and the momentum and k sources (≈ 1 once the
 changes are pure noise).  Converged when the residual is below ``numerics.coupling_tolerance``
-and, over the last three passes, the section-mean pressure gradient changed by less than 1 %
+and, over the last three passes, the section-mean pressure gradient changed so little that
+the drift still to come of the relaxed iteration (change per pass × (1 − α)/α) is below 1 %
 and the particle mass balance (in = out + stuck) closes within 1 %.  Then ``average_passes``
 final passes with ``numerics.parcels`` parcels give the reported statistics (their average);
 the earlier passes use ``numerics.parcels_start``.  One-way coupling solves the gas once and
@@ -146,9 +147,12 @@ class CouplingLoop:
     resume : continue from ``checkpoint`` if it exists (it must belong to the same case)
     parcels : override of numerics.parcels (and parcels_start, if larger)
     progress : callable(PassState) or None, called after every pass
+    tracker : callable with the signature of :func:`particles.track` that runs a Lagrangian
+        pass (default: ``particles.track``, local numba threads; e.g. a Dask-distributed one)
     """
 
-    def __init__(self, case, *, checkpoint=None, resume=False, parcels=None, progress=None):
+    def __init__(self, case, *, checkpoint=None, resume=False, parcels=None, progress=None,
+                 tracker=None):
         if case.particles is None:
             raise ValueError("CouplingLoop needs a case with [particles]")
         if parcels is not None:
@@ -157,6 +161,7 @@ class CouplingLoop:
         self.case = case
         self.checkpoint = Path(checkpoint) if checkpoint is not None else None
         self.progress = progress
+        self.tracker = particles.track if tracker is None else tracker
         self.mesh = build_mesh(case)
         self.gas_props = rans.GasProperties(density=case.gas.density, viscosity=case.gas.viscosity)
         self.spec = particle_spec(case)
@@ -240,8 +245,8 @@ class CouplingLoop:
         parcels_m = n.parcels if self.phase == "final" else n.parcels_start
         stats = self.stats if self.physics.inter_particle_collisions else None
         t0 = time.perf_counter()
-        sample = particles.track(self.mesh, self.gas, self.spec, self.physics, parcels=parcels_m,
-                                 seed=n.seed, pass_index=m, stats=stats, settings=self.settings)
+        sample = self.tracker(self.mesh, self.gas, self.spec, self.physics, parcels=parcels_m,
+                              seed=n.seed, pass_index=m, stats=stats, settings=self.settings)
         t_part = time.perf_counter() - t0
         self.timings["lagrangian"] += t_part
         counts = sample.counts
@@ -306,10 +311,22 @@ class CouplingLoop:
     def _computed_sources(self, sample):
         mom = np.stack([sample.momentum_source(c) for c in range(3)])
         sk = sample.k_source
-        return {"momentum": mom, "k": sk, "epsilon": sample.epsilon_source(self.gas.k, self.gas.epsilon,
-                                                                    self.case.physics.c_eps3),
+        se_k = sample.k_source_stderr
+        if self.case.physics.k_source_scaling == "seen-energy":
+            scale = self._seen_energy_scale(sample)
+            sk = sk * scale
+            se_k = se_k * scale
+        eps_src = self.case.physics.c_eps3 * self.gas.epsilon / self.gas.k * sk
+        return {"momentum": mom, "k": sk, "epsilon": eps_src,
                 "se_momentum": np.stack([sample.momentum_source_stderr(c) for c in range(3)]),
-                "se_k": sample.k_source_stderr}
+                "se_k": se_k}
+
+    def _seen_energy_scale(self, sample):
+        """k / k_seen per cell (physics.k_source_scaling = "seen-energy"); 1 where the cell is
+        poorly sampled (fewer than numerics' min_visits segments)."""
+        seen = sample.seen_k
+        ok = (sample.visits >= self.settings.min_visits) & np.isfinite(seen) & (seen > 0.0)
+        return np.where(ok, self.gas.k / np.where(ok, seen, 1.0), 1.0)
 
     def _relax(self, comp, sample, alpha):
         """Relaxed sources and the coupling residual of this pass (see the module docstring)."""
@@ -317,6 +334,13 @@ class CouplingLoop:
         shape = self.mesh.shape
         if prev is None:
             prev = {"momentum": np.zeros((3,) + shape), "k": np.zeros(shape), "epsilon": np.zeros(shape)}
+        else:
+            # the sinks of k and eps are used as linear sinks, S k/k_ref (rans.Sources): what is
+            # relaxed is their rate S/k_ref, so the previous sinks are carried over to the
+            # present reference field before they are blended with this pass's
+            prev = dict(prev)
+            for key, ref, now in (("k", "k_ref", self.gas.k), ("epsilon", "eps_ref", self.gas.epsilon)):
+                prev[key] = np.where(prev[key] < 0.0, prev[key] * (now / prev[ref]), prev[key])
         new = {"momentum": (1 - alpha) * prev["momentum"] + alpha * comp["momentum"],
                "k": (1 - alpha) * prev["k"] + alpha * comp["k"],
                "epsilon": (1 - alpha) * prev["epsilon"] + alpha * comp["epsilon"],
@@ -343,7 +367,10 @@ class CouplingLoop:
         if len(h.residual) < _INTEGRAL_PASSES + 1 or not h.residual[-1] < n.coupling_tolerance:
             return False
         dp = np.asarray(h.pressure_gradient[-(_INTEGRAL_PASSES + 1):])
-        if np.max(np.abs(np.diff(dp))) > _INTEGRAL_TOL * abs(dp[-1]):
+        # a relaxed iteration still moving by d per pass has about d (1 - alpha)/alpha to go
+        alpha = h.relaxation[-1]
+        drift = np.max(np.abs(np.diff(dp))) * max(1.0, (1.0 - alpha) / alpha)
+        if drift > _INTEGRAL_TOL * abs(dp[-1]):
             return False
         return max(h.mass_balance[-_INTEGRAL_PASSES:]) < _INTEGRAL_TOL
 
@@ -468,16 +495,18 @@ def _atomic_savez(path, arrays):
     atomic_write(path, write)
 
 
-def run(case, out=None, *, resume=False, parcels=None, progress=None):
+def run(case, out=None, *, resume=False, parcels=None, progress=None, tracker=None):
     """Run ``case`` to the end and return its dataset; write it to ``out`` if given.
 
-    The checkpoint lives beside the output (``out.nc.checkpoint``).
+    The checkpoint lives beside the output (``out.nc.checkpoint``); ``tracker``: see
+    :class:`CouplingLoop`.
     """
     from .output import coupled_dataset, write_dataset
 
     t0 = time.perf_counter()
     ckpt = Path(str(out) + ".checkpoint") if out is not None else None
-    loop = CouplingLoop(case, checkpoint=ckpt, resume=resume, parcels=parcels, progress=progress)
+    loop = CouplingLoop(case, checkpoint=ckpt, resume=resume, parcels=parcels, progress=progress,
+                        tracker=tracker)
     loop.run()
     loop.timings["total"] = loop.timings.get("total", 0.0) + (time.perf_counter() - t0)
     ds = coupled_dataset(loop)

@@ -26,7 +26,7 @@ from collisions.wall import minimum_bounce_speed
 
 from .fields import FieldTable
 from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker
-from .layout import (A_J, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
+from .layout import (A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP, B_RESIDENCE,
                      B_WALL, B_WEIGHT, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP, C_REBOUNDS,
                      C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, CS_F, CS_N, CS_OK, CS_RMS, CS_U,
@@ -208,6 +208,12 @@ class Sample:
     @property
     def k_source_stderr(self):
         return self._sum_stderr(A_SK) / self.volume
+
+    @property
+    def seen_k(self):
+        """Mean turbulent energy ½⟨|u′_F|²⟩ of the fluid velocity the particles see [m2 s-2]
+        (number-weighted; NaN in unvisited cells)."""
+        return self._ratio(A_KSEEN, A_WN)
 
     def epsilon_source(self, k, epsilon, c_eps3=C_EPS3):
         """S_ε = C_ε3 (ε/k) S_k [W m-3 s-1] with the gas k, ε (nx, nr, nt); C_ε3 = 1.8 (seed)."""

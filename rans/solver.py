@@ -94,7 +94,8 @@ class GasField:
     [Pa m-1]; wall_shear (nx, nt) [Pa]; wall_yplus (nx, nt) y+ of the wall-cell centres;
     residuals: solver residual history (max normalised change per outer iteration);
     station_iterations (nx,) outer iterations used per station; production_limited (nx,) cells
-    per station where the production limiter P_k <= 10 rho eps acted in the last iteration.
+    per station where the optional production limiter acted in the last iteration; floored
+    (nx,) cells per station held at the k/epsilon floors in the last iteration.
     """
 
     mesh: PipeMesh
@@ -114,6 +115,7 @@ class GasField:
     wall_time: float = 0.0
     face_flux: np.ndarray = field(default=None, repr=False)
     production_limited: np.ndarray = field(default=None, repr=False)
+    floored: np.ndarray = field(default=None, repr=False)
 
     @property
     def nut(self):
@@ -155,14 +157,15 @@ class _State:
 _VARS = ("ux", "uy", "uz", "k", "eps")
 
 
-PRODUCTION_LIMIT = 10.0  # P_k <= PRODUCTION_LIMIT * rho * eps
+PRODUCTION_LIMIT = 10.0  # optional limiter: P_k <= PRODUCTION_LIMIT * rho * eps (solve(production_limit=...))
+K_FLOOR = 1e-10  # k >= K_FLOOR U_b^2 and eps >= C_mu k_floor^(3/2) / D after every solve (PHYSICS.md 6.4)
 
 
 class _StationSolver:
     """Outer iteration of the cross-section equations at one axial station."""
 
     def __init__(self, mesh, gas, bulk_velocity, momentum_scheme="hybrid", pressure_relaxation=1.0,
-                 momentum_relaxation=1.0):
+                 momentum_relaxation=1.0, production_limit=None):
         self.mesh = mesh
         self.sec = mesh.geometry()
         self.rho = gas.density
@@ -176,6 +179,11 @@ class _StationSolver:
         self.x = 0.0
         self.periodic = mesh.mode == "periodic"
         self.coupled = self.periodic  # the march converges fast with SIMPLEC (strong axial term)
+        self.production_limit = production_limit
+        self.k_floor = K_FLOOR * bulk_velocity**2
+        self.eps_floor = ke.C_MU * self.k_floor**1.5 / mesh.diameter
+        self.limited = 0
+        self.floored = 0
 
     # -------------------------------------------------------------------- checks
     def check(self, name, values, positive=False):
@@ -211,6 +219,7 @@ class _StationSolver:
 
     def _iterate(self, st, hist, c0, dx, src, laminar, relax_turb):
         self.limited = 0
+        self.floored = 0
         sec, rho, mu = self.sec, self.rho, self.mu
         A = sec.area
         wall = sec.wall
@@ -295,14 +304,16 @@ class _StationSolver:
             G2 = (dux[0] ** 2 + dux[1] ** 2 + 2.0 * duz[0] ** 2 + 2.0 * duy[1] ** 2
                   + (duz[1] + duy[0]) ** 2 + 2.0 * dudx**2)
             Pk = mut * G2
-            # production limiter P_k <= 10 rho eps (PHYSICS.md §6.4): inactive in single-phase pipe
-            # flow (P_k/(rho eps) < 3); with strong particle sinks on eps (C_eps3 > C_eps1) it stops
-            # the runaway of nu_t = C_mu k^2/eps.  Cells where it acts are counted.
-            cap = PRODUCTION_LIMIT * rho * st.eps
-            over = Pk > cap
-            if over.any():
-                Pk = np.where(over, cap, Pk)
-                self.limited = max(self.limited, int(np.count_nonzero(over)))
+            # optional production limiter P_k <= c rho eps (PHYSICS.md §6.4), off by default:
+            # inactive in single-phase pipe flow (P_k/(rho eps) < 3), but under strong particle
+            # sinks (C_eps3 > C_eps1 lengthens k/eps) it starves the turbulence and drives k to
+            # zero where the particles gather.  Cells where it acts are counted.
+            if self.production_limit is not None:
+                cap = self.production_limit * rho * st.eps
+                over = Pk > cap
+                if over.any():
+                    Pk = np.where(over, cap, Pk)
+                    self.limited = max(self.limited, int(np.count_nonzero(over)))
             ut = -uz[wall] * sec.wall_ny + uy[wall] * sec.wall_nz
             Ut = np.sqrt(ux_new[wall] ** 2 + ut**2)
             tau_w = cw * Ut
@@ -326,6 +337,7 @@ class _StationSolver:
                 dk = dk / relax_turb
             k_new = splu(sec.matrix(dk, kPN, kNP)).solve(bk)
             self.check("k", k_new, positive=True)
+            low_k = k_new < self.k_floor
             # epsilon equation (fixed value in the wall cells)
             ge = sec.interp(mu + mut / ke.SIGMA_EPS)
             de, ePN, eNP = sec.transport(flux, ge, "upwind")
@@ -339,6 +351,19 @@ class _StationSolver:
             be[wall] += big * ke.wall_epsilon(k_new[wall], yP)
             eps_new = splu(sec.matrix(de, ePN, eNP)).solve(be)
             self.check("epsilon", eps_new, positive=True)
+            # floors (PHYSICS.md 6.4) where strong particle sinks laminarise a pocket of the
+            # flow; k and eps are positive here already, the floors keep nu_t and k/eps finite.
+            # Counted per station (GasField.floored), never silent.
+            # Only with referenced (linear) sinks: a fixed sink the flow cannot sustain still
+            # stops the solve (below, at the positivity check, or as a non-converged station).
+            low_e = eps_new < self.eps_floor
+            if src["k_ref"] is None:
+                low_k[:] = False
+                low_e[:] = False
+            if low_k.any() or low_e.any():
+                self.floored = max(self.floored, int(np.count_nonzero(low_k | low_e)))
+                k_new = np.maximum(k_new, self.k_floor)
+                eps_new = np.maximum(eps_new, self.eps_floor)
 
         # ---------------- change and update
         ref_u = self.Ub
@@ -470,6 +495,7 @@ def solve(
     momentum_relaxation=1.0,
     progress=False,
     require_convergence=True,
+    production_limit=None,
 ):
     """Solve the steady gas flow on ``mesh``; returns a :class:`GasField`.
 
@@ -489,6 +515,9 @@ def solve(
     inlet_profile: optional callable (y, z) -> (u_x, u_y, u_z) [m s-1] replacing the uniform
     inlet of the developing mode (verification).
     laminar: solve laminar flow (mu_t = 0, no k-epsilon; for verification).
+    production_limit: None (default) or c, limiting P_k <= c rho eps (counted per station in
+    ``GasField.production_limited``).  k and eps are held above K_FLOOR U_b^2 and
+    C_mu k_floor^(3/2)/D (counted per station in ``GasField.floored``).
     momentum_scheme: "hybrid" (default), "upwind" or "central" cross-section convection.
 
     Raises :class:`SolverDivergence` on non-finite or non-positive k/epsilon, or when the
@@ -504,7 +533,8 @@ def solve(
     if sources is not None:
         _check_sources(mesh, sources)
     solver = _StationSolver(mesh, gas, bulk_velocity, momentum_scheme,
-                            momentum_relaxation=momentum_relaxation if mesh.mode == "periodic" else 1.0)
+                            momentum_relaxation=momentum_relaxation if mesh.mode == "periodic" else 1.0,
+                            production_limit=production_limit)
     if cross_flow_solver is not None:
         if cross_flow_solver not in ("coupled", "simplec"):
             raise ValueError(f"cross_flow_solver = {cross_flow_solver!r}: allowed 'coupled' or 'simplec'")
@@ -518,6 +548,7 @@ def solve(
     residuals = []
     iters = np.zeros(nx, dtype=np.int64)
     limited = np.zeros(nx, dtype=np.int64)
+    floored = np.zeros(nx, dtype=np.int64)
     converged = True
     bar = _progress(nx if mesh.mode == "developing" else max_iterations, progress)
 
@@ -569,6 +600,7 @@ def solve(
             )
         _store(out, G, tau, 0, st)
         limited[0] = solver.limited
+        floored[0] = solver.floored
     else:
         stol = tol if station_tol is None else station_tol
         xc = mesh.x
@@ -615,6 +647,7 @@ def solve(
             converged &= ok
             _store(out, G, tau, i, st)
             limited[i] = solver.limited
+            floored[i] = solver.floored
             prev2, prev1 = prev1, st
             x_prev, h_prev = xc[i], h
             bar.update(1)
@@ -648,6 +681,7 @@ def solve(
         wall_time=time.perf_counter() - t0,
         face_flux=st.flux.copy(),  # cross-section face mass fluxes of the last station (restarts)
         production_limited=limited,
+        floored=floored,
     )
 
 
