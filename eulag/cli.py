@@ -1,9 +1,12 @@
 """The ``eulag`` command line (DESIGN.md, "Command line").
 
     eulag run CASE.toml [-o out.nc] [--parcels N] [--resume] [--quiet]
+                        [--dask-local N | --scheduler ADDRESS]
     eulag plot out.nc [--x 3.56] [-o figs/]
-    eulag study NAME [CASE.toml] [--quick]                       (not available yet)
-    eulag sweep CASES...                                         (not available yet)
+    eulag study NAME [CASE.toml] [--quick]
+    eulag sweep CASES... [-o DIR] [--dask-local N | --scheduler ADDRESS] [--parcels N] [--quiet]
+
+The Dask options (docs/scale_out.md) need the ``dask`` extra (``pip install '.[dask]'``).
 
 Exit status: 0 done, 2 bad input (case file, arguments), 1 anything else; every failure
 prints one line ``eulag: error: <what>`` on stderr and leaves no output file behind.
@@ -56,6 +59,7 @@ def _build_parser() -> argparse.ArgumentParser:
                      help="continue from the checkpoint beside the output; succeed at once if the "
                           "output is already a finished run of the same case")
     run.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+    _add_dask_arguments(run, "the Lagrangian passes' super-batches")
     run.set_defaults(func=cmd_run)
 
     plot = sub.add_parser("plot", help="figures (PNG) from a dataset: section, profiles, convergence")
@@ -66,16 +70,41 @@ def _build_parser() -> argparse.ArgumentParser:
                       help="figure directory (default: <dataset stem>_figures/ beside the dataset)")
     plot.set_defaults(func=cmd_plot)
 
-    study = sub.add_parser("study", help="studies (not available yet)")
-    study.add_argument("name")
-    study.add_argument("case", nargs="?")
-    study.add_argument("--quick", action="store_true")
-    study.set_defaults(func=_not_yet("eulag study"))
+    study = sub.add_parser("study", help="the validation and verification studies (eulag.studies)")
+    import importlib.util
 
-    sweep = sub.add_parser("sweep", help="run several cases (not available yet)")
-    sweep.add_argument("cases", nargs="+")
-    sweep.set_defaults(func=_not_yet("eulag sweep"))
+    if importlib.util.find_spec("eulag.studies") is None:  # not part of this build
+        study.add_argument("name")
+        study.add_argument("case", nargs="?")
+        study.add_argument("--quick", action="store_true")
+        study.set_defaults(func=_not_yet("eulag study"))
+    else:
+        from . import studies
+
+        studies.add_arguments(study)  # defines its own sub-commands and sets func(args) -> exit code
+
+    sweep = sub.add_parser("sweep", help="run several cases, each writing <name>.nc, with a summary table; "
+                                         "resumable")
+    sweep.add_argument("cases", nargs="+", metavar="CASE.toml", help="case files (distinct case names)")
+    sweep.add_argument("-o", "--output-dir", metavar="DIR", default=".",
+                       help="directory of the datasets, checkpoints and sweep_summary.csv/.md "
+                            "(default: the current directory; created if missing)")
+    sweep.add_argument("--parcels", type=_positive_int, metavar="N",
+                       help="parcels per Lagrangian pass in the final passes, for every case")
+    sweep.add_argument("--quiet", action="store_true", help="no progress lines")
+    _add_dask_arguments(sweep, "whole cases")
+    sweep.set_defaults(func=cmd_sweep)
     return ap
+
+
+def _add_dask_arguments(parser, what):
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--dask-local", type=_positive_int, metavar="N",
+                       help=f"run {what} as tasks on a local Dask cluster of N worker processes "
+                            "(one thread each); needs pip install '.[dask]'")
+    group.add_argument("--scheduler", metavar="ADDRESS",
+                       help=f"run {what} as tasks on the Dask cluster of the scheduler at ADDRESS "
+                            "(e.g. tcp://10.0.0.5:8786); needs pip install '.[dask]'")
 
 
 def _positive_int(text: str) -> int:
@@ -148,6 +177,7 @@ def cmd_run(args) -> int:
     except CaseError as exc:
         raise _Fail(str(exc), EXIT_BAD_INPUT) from None
     out = _output_path(args, case)
+    _check_dask(args)
     if case.particles is not None:
         return _run_coupled(args, case, out, t_start)
     if args.resume and _finished_run(out, case):
@@ -222,8 +252,10 @@ def _run_coupled(args, case: Case, out: Path, t_start: float) -> int:
             bar.set_postfix_str(f"residual {state.residual:.3g}, -dp/dx {state.pressure_gradient:.4g} Pa/m, "
                                 f"{state.parcels} parcels, {state.phase}")
 
+    client = None
     try:
-        loop = CouplingLoop(case, checkpoint=ckpt, resume=args.resume, progress=progress)
+        client, tracker = _dask_tracker(args)
+        loop = CouplingLoop(case, checkpoint=ckpt, resume=args.resume, progress=progress, tracker=tracker)
         if bar is not None and loop.pass_index:
             bar.update(loop.pass_index)
         loop.run()
@@ -234,6 +266,7 @@ def _run_coupled(args, case: Case, out: Path, t_start: float) -> int:
     finally:
         if bar is not None:
             bar.close()
+        _close_dask(client)
     loop.timings["total"] = time.perf_counter() - t_start
     ds = coupled_dataset(loop)
     write_dataset(ds, out)
@@ -243,6 +276,63 @@ def _run_coupled(args, case: Case, out: Path, t_start: float) -> int:
         raise _Fail(f"the coupling did not converge in {len(loop.history.residual)} passes (final residual "
                     f"{loop.history.residual[-1]:.3g}); {out} was written with converged = false")
     return EXIT_OK
+
+
+def _check_dask(args) -> None:
+    """Bad input (exit 2) before any work: a Dask option without dask installed."""
+    if getattr(args, "dask_local", None) is None and getattr(args, "scheduler", None) is None:
+        return
+    from eulag.distributed import DaskUnavailable, require_dask
+
+    try:
+        require_dask()
+    except DaskUnavailable as exc:
+        raise _Fail(str(exc), EXIT_BAD_INPUT) from None
+
+
+def _dask_client(args):
+    """A Dask client for --dask-local / --scheduler (None without them)."""
+    if args.dask_local is None and args.scheduler is None:
+        return None
+    import logging
+
+    from eulag.distributed import DaskConnectionError, make_client
+
+    if not os.environ.get("EULAG_DEBUG"):
+        # the distributed loggers print tracebacks on a lost connection; the error is reported
+        # in one line by us
+        logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    try:
+        return make_client(scheduler=args.scheduler, local_workers=args.dask_local)
+    except DaskConnectionError as exc:
+        raise _Fail(str(exc)) from None
+    except ValueError as exc:
+        raise _Fail(str(exc), EXIT_BAD_INPUT) from None
+
+
+def _dask_tracker(args):
+    """(client, tracker) for ``eulag run`` (None, None: local numba threads)."""
+    client = _dask_client(args)
+    if client is None:
+        return None, None
+    from eulag.distributed import DaskTracker, describe
+
+    if not args.quiet:
+        print(describe(client), file=sys.stderr)
+    return client, DaskTracker(client)
+
+
+def _close_dask(client) -> None:
+    if client is None:
+        return
+    import contextlib
+
+    cluster = getattr(client, "cluster", None)  # a LocalCluster of --dask-local; None for --scheduler
+    with contextlib.suppress(Exception):
+        client.close(timeout=10)
+    if cluster is not None:
+        with contextlib.suppress(Exception):
+            cluster.close(timeout=10)
 
 
 def _coupled_summary(case, loop, ds, out) -> str:
@@ -305,6 +395,65 @@ def _summary(case, mesh, field, out, timings, t_write) -> str:
         f"  written      {out}",
     ]
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------
+# eulag sweep
+# ---------------------------------------------------------------------------
+
+def cmd_sweep(args) -> int:
+    """Whole cases one after another, or as Dask tasks (eulag.sweep); exit 2 on bad input
+    before any case starts, 1 if a case failed or did not converge (see the summary)."""
+    from eulag import sweep
+
+    _check_dask(args)
+    try:
+        entries = sweep.plan_sweep(args.cases, args.output_dir, parcels=args.parcels)
+    except sweep.SweepInputError as exc:
+        raise _Fail(str(exc), EXIT_BAD_INPUT) from None
+    say = None if args.quiet else (lambda line: print(line, flush=True))
+    client = None
+    rows = None
+    numba_threads = None
+    try:
+        if any(not e.finished for e in entries):
+            client = _dask_client(args)
+        if client is not None:
+            from eulag.distributed import describe
+
+            numba_threads = 1  # one numba thread per Dask worker thread
+            if say:
+                say(describe(client))
+        rows = sweep.run_sweep(entries, client, numba_threads=numba_threads, progress=say)
+    except Exception as exc:
+        from eulag.distributed import DaskConnectionError
+
+        if isinstance(exc, DaskConnectionError):
+            raise _Fail(f"sweep: {exc}") from None
+        raise
+    finally:
+        _close_dask(client)
+        if rows is None:  # interrupted or lost: the summary of what is known
+            rows = [sweep.summary_row(e.name, None, e.output, sweep.NOT_RUN, "") for e in entries]
+            for i, e in enumerate(entries):
+                if e.output.is_file():
+                    try:
+                        rows[i] = sweep._read_row(e, sweep.FINISHED_EARLIER if e.finished else sweep.RAN)
+                    except Exception:  # noqa: BLE001
+                        pass
+        csv_path, md_path = sweep.write_summary(rows, args.output_dir)
+    if say:
+        say(f"summary: {csv_path} and {md_path}")
+    failed = [r["case"] for r in rows if r["status"] == sweep.FAILED]
+    unconverged = [r["case"] for r in rows if r["status"] != sweep.FAILED and r["converged"] is not True]
+    if failed or unconverged:
+        parts = []
+        if failed:
+            parts.append(f"{len(failed)} failed ({', '.join(failed)})")
+        if unconverged:
+            parts.append(f"{len(unconverged)} did not converge ({', '.join(unconverged)})")
+        raise _Fail(f"sweep of {len(rows)} cases: {'; '.join(parts)}; see {md_path}")
+    return EXIT_OK
 
 
 # ---------------------------------------------------------------------------

@@ -1,0 +1,330 @@
+"""``eulag sweep CASES...``: whole cases as tasks, a summary table, resumable.
+
+    eulag sweep cases/a.toml cases/b.toml ... [-o DIR] [--dask-local N | --scheduler ADDRESS]
+                [--parcels N] [--quiet]
+
+Every case writes its own dataset ``DIR/<case name>.nc`` and keeps its checkpoint beside it
+(``DIR/<case name>.nc.checkpoint``), exactly as ``eulag run CASE -o DIR/<name>.nc --resume``.
+Without Dask options the cases run one after another in this process (numba threads as
+usual); with ``--dask-local N`` each case is a task on a local cluster of N worker processes,
+with ``--scheduler ADDRESS`` a task on an existing cluster (the workers must have eulag
+installed and see DIR at the same path: a shared file system).
+
+Resuming: a case whose dataset in DIR is already a finished run of the same case (converged,
+as ``eulag run --resume`` recognises it; or ended unconverged after all its passes) is not run
+again; a case that was interrupted continues from its checkpoint.  A case task whose worker
+dies is re-run by Dask, and then also continues from the checkpoint.
+
+At the end (also after failures or an interruption) ``DIR/sweep_summary.csv`` and
+``DIR/sweep_summary.md`` list per case: status (ran | finished earlier | failed | not run),
+converged, passes, final residual, section-mean −dp/dx, the single-phase −dp/dx, the
+pressure-drop ratio and λ_Z (gas–particle cases), wall time, output and the error message.
+
+Bad input (a missing or invalid case file, two cases with the same name, an output that holds
+a different case) is reported before any case starts.  Exit status: 0 all cases finished and
+converged, 2 bad input, 1 otherwise (the summary says which).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+from eulag.config import Case, CaseError
+
+__all__ = ["SweepInputError", "SweepCase", "plan_sweep", "run_case", "run_sweep", "write_summary",
+           "summary_row", "COLUMNS", "SUMMARY_STEM"]
+
+SUMMARY_STEM = "sweep_summary"
+COLUMNS = ("case", "status", "converged", "passes", "final_residual", "pressure_gradient",
+           "pressure_gradient_single_phase", "solids_pressure_drop_ratio",
+           "additional_pressure_loss_coefficient", "wall_time", "output", "error")
+_HEADERS = {"case": "case", "status": "status", "converged": "converged", "passes": "passes",
+            "final_residual": "final residual", "pressure_gradient": "-dp/dx [Pa/m]",
+            "pressure_gradient_single_phase": "-dp/dx single-phase [Pa/m]",
+            "solids_pressure_drop_ratio": "dp ratio", "additional_pressure_loss_coefficient": "lambda_Z",
+            "wall_time": "wall time [s]", "output": "output", "error": "error"}
+
+RAN, FINISHED_EARLIER, FAILED, NOT_RUN = "ran", "finished earlier", "failed", "not run"
+
+
+class SweepInputError(ValueError):
+    """Bad input of a sweep (one line); nothing has been run."""
+
+
+@dataclass
+class SweepCase:
+    """One case of a sweep: its file, the validated case, its output, and whether it is done."""
+
+    path: str
+    case: Case
+    output: Path
+    finished: bool = False
+
+    @property
+    def name(self):
+        return self.case.name
+
+
+# ---------------------------------------------------------------------------- planning
+def plan_sweep(paths, output_dir=".", parcels=None):
+    """Validate every case file and the output directory; list the cases with their state.
+
+    Raises :class:`SweepInputError` (nothing run, nothing written except ``output_dir``).
+    """
+    from eulag.cli import _Fail, _finished_run
+
+    if not paths:
+        raise SweepInputError("no case files given")
+    outdir = Path(output_dir)
+    if outdir.exists() and not outdir.is_dir():
+        raise SweepInputError(f"-o {outdir}: exists and is not a directory; allowed: a directory")
+    entries = []
+    by_name = {}
+    for p in paths:
+        try:
+            case = Case.from_toml(p)
+        except CaseError as exc:
+            raise SweepInputError(str(exc)) from None
+        if parcels is not None:
+            case = case.replace(numerics={"parcels": int(parcels),
+                                          "parcels_start": min(case.numerics.parcels_start, int(parcels))})
+        if case.name in by_name:
+            raise SweepInputError(f"{p}: case name {case.name!r} is also the name of {by_name[case.name]}; "
+                                  "every case of a sweep needs its own name (its output is <name>.nc)")
+        by_name[case.name] = p
+        entries.append(SweepCase(path=str(p), case=case, output=(outdir / f"{case.name}.nc").resolve()))
+    for e in entries:
+        if e.output.exists() and e.output.is_dir():
+            raise SweepInputError(f"{e.output}: is a directory; the output of case {e.name} must be a file")
+        try:
+            e.finished = _finished_run(e.output, e.case) or _ended_unconverged(e.output)
+        except _Fail as exc:
+            msg = str(exc).replace("--resume: ", "")
+            raise SweepInputError(f"case {e.name} ({e.path}): {msg}") from None
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepInputError(f"-o {outdir}: cannot create the directory ({exc})") from None
+    return entries
+
+
+def _ended_unconverged(out):
+    """A dataset of the same case (checked by ``_finished_run`` first) that ended with
+    converged = false: its run used all its passes; running it again gives the same."""
+    if not out.is_file():
+        return False
+    import xarray as xr
+
+    with xr.open_dataset(out) as ds:
+        return ds.attrs.get("converged") == "false"
+
+
+# ---------------------------------------------------------------------------- one case
+def _float(v):
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return math.nan
+    return f
+
+
+def summary_row(name, ds, output, status, wall_time, error=""):
+    """The summary line (dict over :data:`COLUMNS`) of a case from its dataset (or None)."""
+    row = {c: "" for c in COLUMNS}
+    row.update(case=name, status=status, output=str(output), error=error)
+    row["wall_time"] = wall_time
+    if ds is None:
+        return row
+    import numpy as np
+
+    row["converged"] = ds.attrs.get("converged") == "true"
+    two_phase = "parcels" in ds.variables
+    row["passes"] = int(ds.sizes.get("iteration", 0)) if two_phase else 0
+    if "residual" in ds.variables and ds["residual"].size:
+        row["final_residual"] = float(np.asarray(ds["residual"].values).ravel()[-1])
+    for key in ("pressure_gradient", "pressure_gradient_single_phase"):
+        if key in ds.variables:
+            row[key] = float(np.mean(ds[key].values))
+    for key in ("solids_pressure_drop_ratio", "additional_pressure_loss_coefficient"):
+        if key in ds.variables:
+            row[key] = _float(ds[key].values)
+        elif key in ds.attrs:
+            row[key] = _float(ds.attrs[key])
+    if wall_time == "" or wall_time is None:
+        row["wall_time"] = _float(ds.attrs.get("time_total", math.nan))
+    return row
+
+
+def _read_row(entry, status):
+    import xarray as xr
+
+    with xr.open_dataset(entry.output) as ds:
+        return summary_row(entry.name, ds.load(), entry.output, status, None)
+
+
+def run_case(case, output, numba_threads=None):
+    """Run one case to the end (resuming from its checkpoint) and write ``output``.
+
+    The task of a sweep; returns its summary row.  A failure of the case is returned as a
+    row with status "failed" and a one-line error (it does not fail the task, so Dask does
+    not retry a case that fails deterministically).
+    """
+    t0 = time.perf_counter()
+    output = Path(output)
+    try:
+        from eulag.distributed import set_numba_threads
+
+        set_numba_threads(numba_threads)
+        if case.particles is not None:
+            from eulag.coupling import run
+
+            ds = run(case, output, resume=True)
+        else:
+            ds = _run_single_phase(case, output, t0)
+    except Exception as exc:  # noqa: BLE001 - reported in the summary, one line
+        text = " ".join(f"{type(exc).__name__}: {exc}".split())
+        return summary_row(case.name, None, output, FAILED, time.perf_counter() - t0, error=text)
+    return summary_row(case.name, ds, output, RAN, time.perf_counter() - t0)
+
+
+def _run_single_phase(case, output, t0):
+    import rans
+    from eulag.coupling import build_mesh
+    from eulag.output import gas_dataset, write_dataset
+
+    mesh = build_mesh(case)
+    gas = rans.GasProperties(density=case.gas.density, viscosity=case.gas.viscosity)
+    t1 = time.perf_counter()
+    field = rans.solve(mesh, gas, bulk_velocity=case.gas.bulk_velocity, inlet_k=case.gas.inlet_k,
+                       inlet_epsilon=case.gas.inlet_epsilon, sources=None, tol=case.numerics.gas_tolerance,
+                       max_iterations=case.numerics.gas_max_iterations)
+    timings = {"gas_solve": time.perf_counter() - t1, "total": time.perf_counter() - t0}
+    ds = gas_dataset(case, mesh, field, timings=timings)
+    write_dataset(ds, output)
+    return ds
+
+
+# ---------------------------------------------------------------------------- the sweep
+def run_sweep(entries, client=None, *, numba_threads=None, progress=None):
+    """Run the unfinished cases of ``entries`` (from :func:`plan_sweep`); rows in input order.
+
+    client : a dask.distributed.Client (each case one task) or None (one after another here).
+    numba_threads : numba threads per case (None: numba's default; on Dask workers with one
+        thread each, 1).  progress : callable(str) for one line per case, or None.
+    On an interruption or a lost scheduler the rows of the cases not done say "not run".
+    """
+    say = progress or (lambda line: None)
+    rows = {}
+    todo = []
+    for e in entries:
+        if e.finished:
+            rows[e.name] = _read_row(e, FINISHED_EARLIER)
+            say(f"{e.name}: finished earlier ({e.output}); not run again")
+        else:
+            todo.append(e)
+    done = 0
+
+    def report(row):
+        nonlocal done
+        done += 1
+        rows[row["case"]] = row
+        if row["status"] == FAILED:
+            what = f"FAILED: {row['error']}"
+        else:
+            conv = "converged" if row["converged"] else "NOT converged"
+            what = f"{conv}, {row['passes']} passes, {row['wall_time']:.1f} s -> {row['output']}"
+        say(f"[{done}/{len(todo)}] {row['case']}: {what}")
+
+    try:
+        if client is None:
+            for e in todo:
+                report(run_case(e.case, e.output, numba_threads))
+        else:
+            _run_on_dask(client, todo, numba_threads, report)
+    finally:
+        for e in entries:
+            if e.name not in rows:
+                rows[e.name] = summary_row(e.name, None, e.output, NOT_RUN, "",
+                                           error="interrupted before it finished; run the sweep again "
+                                                 "to resume")
+    return [rows[e.name] for e in entries]
+
+
+def _run_on_dask(client, todo, numba_threads, report):
+    from dask.distributed import as_completed
+
+    from eulag.distributed import DaskConnectionError, _connection_errors, _oneline
+
+    tag = uuid.uuid4().hex[:8]
+    futures = {client.submit(run_case, e.case, str(e.output), numba_threads, pure=False,
+                             key=f"eulag-case-{e.name}-{tag}"): e for e in todo}
+    try:
+        for fut in as_completed(futures):
+            e = futures[fut]
+            try:
+                row = fut.result()
+            except _connection_errors() as exc:
+                raise DaskConnectionError(f"lost the Dask scheduler or the connection to it "
+                                          f"({_oneline(exc)}); finished cases are kept, run the sweep "
+                                          "again to resume") from None
+            except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: the case failed
+                row = summary_row(e.name, None, e.output, FAILED, "", error=_oneline(exc))
+            report(row)
+    finally:
+        for f in futures:
+            f.release()
+
+
+# ---------------------------------------------------------------------------- summary
+def _fmt(v):
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        if math.isnan(v):
+            return ""
+        return f"{v:.4g}"
+    return str(v)
+
+
+def write_summary(rows, output_dir):
+    """Write ``sweep_summary.csv`` and ``sweep_summary.md`` in ``output_dir``; returns both paths."""
+    from eulag.output import atomic_write
+
+    outdir = Path(output_dir)
+    csv_path = outdir / f"{SUMMARY_STEM}.csv"
+    md_path = outdir / f"{SUMMARY_STEM}.md"
+
+    def write_csv(tmp):
+        with open(tmp, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=COLUMNS)
+            w.writeheader()
+            for r in rows:
+                w.writerow({c: ("true" if r[c] is True else "false" if r[c] is False else
+                                ("" if isinstance(r[c], float) and math.isnan(r[c]) else r[c]))
+                            for c in COLUMNS})
+
+    def write_md(tmp):
+        n_ok = sum(1 for r in rows if r["status"] in (RAN, FINISHED_EARLIER) and r["converged"] is True)
+        lines = [f"# eulag sweep: {len(rows)} cases, {n_ok} finished and converged", "",
+                 "| " + " | ".join(_HEADERS[c] for c in COLUMNS) + " |",
+                 "|" + "|".join("---" for _ in COLUMNS) + "|"]
+        for r in rows:
+            cells = [_fmt(r[c]).replace("|", "\\|") for c in COLUMNS]
+            lines.append("| " + " | ".join(cells) + " |")
+        with open(tmp, "w") as fh:
+            fh.write("\n".join(lines) + "\n")
+
+    atomic_write(csv_path, write_csv)
+    atomic_write(md_path, write_md)
+    return csv_path, md_path
+
+
+def read_summary(path):
+    """Rows of a ``sweep_summary.csv`` (dicts of str)."""
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))

@@ -1,0 +1,296 @@
+"""Dask scale-out (eulag.distributed, eulag.sweep): equality with local runs, faults, sweeps.
+
+One LocalCluster of 2 worker processes (1 thread each) serves the module; its workers compile
+the super-batch driver once (numba cannot cache the parallel driver) and keep it.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dask.distributed")
+
+import particles  # noqa: E402
+from eulag import cli, sweep  # noqa: E402
+from eulag.coupling import CouplingError, CouplingLoop, run  # noqa: E402
+from eulag.distributed import DaskConnectionError, DaskTracker, dask_client  # noqa: E402
+
+from .test_coupling import SMALL, data_vars_equal, small_case  # noqa: E402
+
+# four super-batches in the early passes (1000 parcels / 200 per batch, 2 batches each) and
+# four in the final passes (1500 parcels), so two workers share every pass
+SPLIT = {"numerics.batches_per_superbatch": 2}
+
+
+@pytest.fixture(scope="module")
+def client():
+    with dask_client(local_workers=2) as c:
+        c.wait_for_workers(2, timeout=60)
+        yield c
+
+
+@pytest.fixture(scope="module")
+def local_ds():
+    return run(small_case(**SPLIT))
+
+
+def _pids(client):
+    return client.run(os.getpid)
+
+
+# ---------------------------------------------------------------------------- equality
+def test_plan_gives_several_superbatches():
+    case = small_case(**SPLIT)
+    n = case.numerics
+    for parcels in (n.parcels_start, n.parcels):
+        _, _, supers = particles.batch_plan(parcels, particles.TrackSettings(
+            batch_size=n.batch_size, batches_per_superbatch=n.batches_per_superbatch))
+        assert len(supers) >= 3
+
+
+def test_dask_two_workers_equal_local(client, local_ds):
+    tracker = DaskTracker(client)
+    ds = run(small_case(**SPLIT), tracker=tracker)
+    assert tracker.passes == ds.sizes["iteration"] and tracker.tasks >= 3 * tracker.passes
+    data_vars_equal(local_ds, ds)
+    assert ds.attrs["converged"] == local_ds.attrs["converged"]
+
+
+def test_dask_one_worker_equals_two(client, local_ds):
+    one = sorted(client.scheduler_info()["workers"])[0]
+    seen = set()
+
+    def pin(futures, pass_index):  # every super-batch on the same worker
+        for f in futures:
+            seen.update(w for w, keys in client.processing().items() if f.key in keys)
+
+    tracker = DaskTracker(client, after_submit=pin, workers=[one])
+    ds = run(small_case(**SPLIT), tracker=tracker)
+    assert seen <= {one}
+    data_vars_equal(local_ds, ds)
+
+
+def test_pass_equal_for_any_superbatch_order(client):
+    """A single pass with inter-particle collisions: local == Dask, bit for bit."""
+    loop = CouplingLoop(small_case(**SPLIT))
+    loop.step()  # gas + first pass: cell statistics exist now
+    args = (loop.mesh, loop.gas, loop.spec, loop.physics)
+    kw = dict(parcels=1500, seed=3, pass_index=7, stats=loop.stats, settings=loop.settings)
+    a = particles.track(*args, **kw)
+    b = DaskTracker(client)(*args, **kw)
+    for name in ("total", "var", "cov"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert a.counts == b.counts and a.counts["particle_collisions"] > 0
+
+
+# ---------------------------------------------------------------------------- faults
+def test_worker_killed_mid_pass_same_result(client, local_ds):
+    killed = {}
+
+    def kill_one(futures, pass_index):
+        if pass_index != 3 or killed:
+            return
+        pids = _pids(client)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            proc = client.processing()
+            holders = client.who_has(futures)
+            busy = [w for w, keys in proc.items() if {f.key for f in futures} & set(keys)]
+            busy += [w for ws in holders.values() for w in ws]
+            if busy:
+                victim = busy[0]
+                killed["pending"] = sum(not f.done() for f in futures)
+                killed["worker"] = victim
+                killed["pid"] = pids[victim]
+                os.kill(pids[victim], signal.SIGKILL)
+                return
+            time.sleep(0.005)
+
+    tracker = DaskTracker(client, after_submit=kill_one)
+    ds = run(small_case(**SPLIT), tracker=tracker)
+    assert killed, "no worker was killed"
+    # the pass was not complete when its worker died: the client had not fetched one result
+    assert killed["pending"] >= 1 or killed["worker"]
+    data_vars_equal(local_ds, ds)
+    client.wait_for_workers(2, timeout=60)  # the nanny restarts the killed worker
+    assert killed["pid"] not in _pids(client).values()
+
+
+def test_lost_scheduler_clear_error_checkpoint_intact(tmp_path, local_ds):
+    """A scheduler of our own (subprocess) killed during pass 2: DaskConnectionError, the
+    checkpoint holds pass 1, and a resumed (local) run ends with the uninterrupted numbers."""
+    port = _free_port()
+    env = dict(os.environ, PYTHONWARNINGS="ignore")
+    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", str(port),
+                              "--no-dashboard", "--host", "127.0.0.1"], env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", f"tcp://127.0.0.1:{port}",
+                               "--nthreads", "1", "--no-dashboard", "--no-nanny"], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        with dask_client(scheduler=f"tcp://127.0.0.1:{port}", timeout=60) as c:
+            c.wait_for_workers(1, timeout=60)
+
+            def kill_scheduler(futures, pass_index):
+                if pass_index == 2:
+                    sched.kill()
+
+            case = small_case(**SPLIT)
+            ckpt = tmp_path / "out.nc.checkpoint"
+            loop = CouplingLoop(case, checkpoint=ckpt, tracker=DaskTracker(c, after_submit=kill_scheduler))
+            with pytest.raises(DaskConnectionError, match="pass 2: lost the Dask scheduler") as err:
+                loop.run()
+            assert isinstance(err.value, CouplingError) and "\n" not in str(err.value)
+    finally:
+        for p in (sched, worker):
+            p.kill()
+            p.wait()
+    resumed = CouplingLoop(case, checkpoint=ckpt, resume=True)
+    assert resumed.pass_index == 1
+    ds = run(case, tmp_path / "out.nc", resume=True)
+    data_vars_equal(local_ds, ds)
+
+
+def _free_port():
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# ---------------------------------------------------------------------------- sweeps
+def _write_case(path, name, seed):
+    d = {k: dict(v) if isinstance(v, dict) else v for k, v in SMALL.items()}
+    d["name"] = name
+    d["numerics"]["seed"] = seed
+    d["numerics"]["max_passes"] = 10  # converges in 8-9 passes (seeds 3-6)
+    lines = [f'name = "{name}"']
+    for section, values in d.items():
+        if not isinstance(values, dict):
+            continue
+        lines.append(f"[{section}]")
+        for k, v in values.items():
+            lines.append(f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v!r}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_sweep_resumes_without_rerunning_finished_cases(tmp_path, client, capsys):
+    cases = [_write_case(tmp_path / f"c{i}.toml", f"sweep_{i}", seed) for i, seed in enumerate((3, 4, 5))]
+    out = tmp_path / "out"
+    # the "interrupted" sweep: only the first case got done (locally, one after another)
+    assert cli.main(["sweep", str(cases[0]), "-o", str(out), "--quiet"]) == 0
+    first = out / "sweep_0.nc"
+    stamp = first.stat().st_mtime_ns
+    assert (out / "sweep_summary.csv").is_file()
+    # the whole sweep again, on the Dask cluster: case 0 is not run again
+    entries = sweep.plan_sweep([str(c) for c in cases], out)
+    assert [e.finished for e in entries] == [True, False, False]
+    rows = sweep.run_sweep(entries, client, numba_threads=1)
+    sweep.write_summary(rows, out)
+    assert first.stat().st_mtime_ns == stamp
+    assert [r["status"] for r in rows] == ["finished earlier", "ran", "ran"]
+    for r in rows:
+        assert r["converged"] is True and r["passes"] >= 3 and r["pressure_gradient"] > 0
+        assert r["solids_pressure_drop_ratio"] > 1.0 and Path(r["output"]).is_file()
+    table = sweep.read_summary(out / "sweep_summary.csv")
+    assert [r["case"] for r in table] == ["sweep_0", "sweep_1", "sweep_2"]
+    md = (out / "sweep_summary.md").read_text()
+    assert md.count("| sweep_") == 3 and "finished earlier" in md
+    # the cases a sweep ran equal single runs of them (case 1 vs a direct run)
+    import xarray as xr
+
+    with xr.open_dataset(out / "sweep_1.nc") as ds1:
+        ref = run(small_case(**{"numerics.seed": 4, "numerics.max_passes": 10}))
+        data_vars_equal(ref, ds1.load())
+    # everything finished: the CLI sweep runs nothing and succeeds
+    stamps = {p: p.stat().st_mtime_ns for p in out.glob("*.nc")}
+    capsys.readouterr()
+    assert cli.main(["sweep", *map(str, cases), "-o", str(out)]) == 0
+    assert "finished earlier" in capsys.readouterr().out
+    assert stamps == {p: p.stat().st_mtime_ns for p in out.glob("*.nc")}
+
+
+def test_sweep_bad_input_exit_2_before_any_work(tmp_path, capsys):
+    good = _write_case(tmp_path / "good.toml", "good", 3)
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(good), str(tmp_path / "missing.toml"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "missing.toml: no such case file" in err
+    bad = tmp_path / "bad.toml"
+    bad.write_text(good.read_text().replace("diameter = 0.0305", "diameter = -1.0"))
+    assert cli.main(["sweep", str(good), str(bad), "-o", str(out)]) == 2
+    assert "pipe.diameter" in capsys.readouterr().err
+    twin = _write_case(tmp_path / "twin.toml", "good", 4)
+    assert cli.main(["sweep", str(good), str(twin), "-o", str(out)]) == 2
+    assert "also the name of" in capsys.readouterr().err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_dask_option_without_dask_is_bad_input(tmp_path, monkeypatch, capsys):
+    from eulag import distributed
+
+    def missing():
+        raise distributed.DaskUnavailable(distributed.INSTALL_HINT)
+
+    monkeypatch.setattr(distributed, "require_dask", missing)
+    case = _write_case(tmp_path / "c.toml", "c", 3)
+    for argv in (["run", str(case), "-o", str(tmp_path / "c.nc"), "--dask-local", "2"],
+                 ["sweep", str(case), "-o", str(tmp_path), "--scheduler", "tcp://127.0.0.1:1"]):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and "pip install '.[dask]'" in err
+    assert not (tmp_path / "c.nc").exists()
+    assert cli.main(["run", str(case), "--dask-local", "2", "--scheduler", "tcp://x:1"]) == 2
+
+
+def test_unreachable_scheduler_one_line(tmp_path, capsys):
+    case = _write_case(tmp_path / "c.toml", "c", 3)
+    status = cli.main(["run", str(case), "-o", str(tmp_path / "c.nc"), "--quiet",
+                       "--scheduler", f"tcp://127.0.0.1:{_free_port()}"])
+    err = capsys.readouterr().err.strip()
+    assert status == 1 and err.count("\n") == 0 and "cannot connect to the Dask scheduler" in err
+
+
+# ---------------------------------------------------------------------------- slow
+@pytest.mark.slow
+def test_cli_run_dask_local_equals_local(tmp_path):
+    case = _write_case(tmp_path / "c.toml", "c", 3)
+    env = dict(os.environ, PYTHONWARNINGS="ignore")
+    for tag, extra in (("local", []), ("dask", ["--dask-local", "2"])):
+        r = subprocess.run([sys.executable, "-m", "eulag", "run", str(case), "-o", str(tmp_path / f"{tag}.nc"),
+                            "--quiet", *extra], env=env, capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "local.nc") as a, xr.open_dataset(tmp_path / "dask.nc") as b:
+        data_vars_equal(a.load(), b.load())
+
+
+@pytest.mark.slow
+def test_sweep_subprocess_killed_and_resumed(tmp_path):
+    cases = [_write_case(tmp_path / f"c{i}.toml", f"kill_{i}", seed) for i, seed in enumerate((3, 4, 5))]
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "eulag", "sweep", *map(str, cases), "-o", str(out), "--quiet"]
+    env = dict(os.environ, PYTHONWARNINGS="ignore")
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    first = out / "kill_0.nc"
+    deadline = time.monotonic() + 300
+    while not first.exists() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    proc.kill()
+    proc.wait()
+    assert first.exists() and not (out / "kill_2.nc").exists(), "the sweep was not killed mid-way"
+    stamp = first.stat().st_mtime_ns
+    r = subprocess.run(cmd + ["--dask-local", "2"], env=env, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert first.stat().st_mtime_ns == stamp
+    rows = sweep.read_summary(out / "sweep_summary.csv")
+    assert [r["status"] for r in rows] == ["finished earlier", "ran", "ran"]
