@@ -65,15 +65,17 @@ def require_dask():
 
 
 def make_client(scheduler=None, local_workers=None, *, threads_per_worker=1, memory_limit="auto",
-                timeout=CONNECT_TIMEOUT):
+                timeout=None):
     """A ``dask.distributed.Client``: of an existing scheduler at ``scheduler`` (an address such
     as ``tcp://10.0.0.5:8786``), or of a new ``LocalCluster`` with ``local_workers`` worker
-    processes of ``threads_per_worker`` threads each.  The caller closes the client and, for a
+    processes of ``threads_per_worker`` threads each (``timeout``: seconds to reach the
+    scheduler, default :data:`CONNECT_TIMEOUT`).  The caller closes the client and, for a
     local cluster, ``client.cluster`` (or uses :func:`dask_client`)."""
     if (scheduler is None) == (local_workers is None):
         raise ValueError("give exactly one of scheduler (an address) and local_workers (a count)")
     dd = require_dask()
     if scheduler is not None:
+        timeout = CONNECT_TIMEOUT if timeout is None else timeout
         try:
             return dd.Client(scheduler, timeout=timeout)
         except (OSError, TimeoutError) as exc:

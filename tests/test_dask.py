@@ -89,82 +89,6 @@ def test_pass_equal_for_any_superbatch_order(client):
     assert a.counts == b.counts and a.counts["particle_collisions"] > 0
 
 
-# ---------------------------------------------------------------------------- faults
-def test_worker_killed_mid_pass_same_result(client, local_ds):
-    killed = {}
-
-    def kill_one(futures, pass_index):
-        if pass_index != 3 or killed:
-            return
-        pids = _pids(client)
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
-            proc = client.processing()
-            holders = client.who_has(futures)
-            busy = [w for w, keys in proc.items() if {f.key for f in futures} & set(keys)]
-            busy += [w for ws in holders.values() for w in ws]
-            if busy:
-                victim = busy[0]
-                killed["pending"] = sum(not f.done() for f in futures)
-                killed["worker"] = victim
-                killed["pid"] = pids[victim]
-                os.kill(pids[victim], signal.SIGKILL)
-                return
-            time.sleep(0.005)
-
-    tracker = DaskTracker(client, after_submit=kill_one)
-    ds = run(small_case(**SPLIT), tracker=tracker)
-    assert killed, "no worker was killed"
-    # the pass was not complete when its worker died: the client had not fetched one result
-    assert killed["pending"] >= 1 or killed["worker"]
-    data_vars_equal(local_ds, ds)
-    client.wait_for_workers(2, timeout=60)  # the nanny restarts the killed worker
-    assert killed["pid"] not in _pids(client).values()
-
-
-def test_lost_scheduler_clear_error_checkpoint_intact(tmp_path, local_ds):
-    """A scheduler of our own (subprocess) killed during pass 2: DaskConnectionError, the
-    checkpoint holds pass 1, and a resumed (local) run ends with the uninterrupted numbers."""
-    port = _free_port()
-    env = dict(os.environ, PYTHONWARNINGS="ignore")
-    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", str(port),
-                              "--no-dashboard", "--host", "127.0.0.1"], env=env,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", f"tcp://127.0.0.1:{port}",
-                               "--nthreads", "1", "--no-dashboard", "--no-nanny"], env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        with dask_client(scheduler=f"tcp://127.0.0.1:{port}", timeout=60) as c:
-            c.wait_for_workers(1, timeout=60)
-
-            def kill_scheduler(futures, pass_index):
-                if pass_index == 2:
-                    sched.kill()
-
-            case = small_case(**SPLIT)
-            ckpt = tmp_path / "out.nc.checkpoint"
-            loop = CouplingLoop(case, checkpoint=ckpt, tracker=DaskTracker(c, after_submit=kill_scheduler))
-            with pytest.raises(DaskConnectionError, match="pass 2: lost the Dask scheduler") as err:
-                loop.run()
-            assert isinstance(err.value, CouplingError) and "\n" not in str(err.value)
-    finally:
-        for p in (sched, worker):
-            p.kill()
-            p.wait()
-    resumed = CouplingLoop(case, checkpoint=ckpt, resume=True)
-    assert resumed.pass_index == 1
-    ds = run(case, tmp_path / "out.nc", resume=True)
-    data_vars_equal(local_ds, ds)
-
-
-def _free_port():
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 # ---------------------------------------------------------------------------- sweeps
 def _write_case(path, name, seed):
     d = {k: dict(v) if isinstance(v, dict) else v for k, v in SMALL.items()}
@@ -251,12 +175,103 @@ def test_dask_option_without_dask_is_bad_input(tmp_path, monkeypatch, capsys):
     assert cli.main(["run", str(case), "--dask-local", "2", "--scheduler", "tcp://x:1"]) == 2
 
 
-def test_unreachable_scheduler_one_line(tmp_path, capsys):
+def test_unreachable_scheduler_one_line(tmp_path, capsys, monkeypatch):
+    from eulag import distributed
+
+    monkeypatch.setattr(distributed, "CONNECT_TIMEOUT", 2.0)
     case = _write_case(tmp_path / "c.toml", "c", 3)
     status = cli.main(["run", str(case), "-o", str(tmp_path / "c.nc"), "--quiet",
                        "--scheduler", f"tcp://127.0.0.1:{_free_port()}"])
     err = capsys.readouterr().err.strip()
     assert status == 1 and err.count("\n") == 0 and "cannot connect to the Dask scheduler" in err
+
+
+# ---------------------------------------------------------------------------- faults
+def test_worker_killed_mid_pass_same_result(client, local_ds):
+    """SIGKILL of a worker that runs (or holds the result of) a super-batch of pass 3 before the
+    client fetched it: Dask runs that super-batch again and the dataset is the same."""
+    killed = {}
+
+    def kill_one(futures, pass_index):
+        if pass_index != 3 or killed:
+            return
+        pids = _pids(client)
+        ours = {f.key for f in futures}
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            victims = {}
+            for w, keys in client.processing().items():
+                victims.setdefault(w, set()).update(ours & set(keys))
+            for key, ws in client.who_has(futures).items():
+                for w in ws:
+                    victims.setdefault(w, set()).add(key)
+            victims = {w: k for w, k in victims.items() if k}
+            if victims:
+                w, keys = next(iter(victims.items()))
+                os.kill(pids[w], signal.SIGKILL)
+                killed.update(worker=w, pid=pids[w], keys=keys)
+                return
+            time.sleep(0.002)
+
+    tracker = DaskTracker(client, after_submit=kill_one)
+    ds = run(small_case(**SPLIT), tracker=tracker)
+    assert killed, "no worker was killed"
+    data_vars_equal(local_ds, ds)
+    # the killed worker's super-batches were computed again (went to "processing" twice)
+    story = [t[1:] if t[0] == "scheduler" else t for t in client.story(*killed["keys"])]
+    again = [k for k in killed["keys"] if sum(1 for t in story if t[0] == k and t[2] == "processing") >= 2]
+    assert again, story
+    client.wait_for_workers(2, timeout=60)  # the nanny restarts the killed worker
+    assert killed["pid"] not in _pids(client).values()
+
+
+def test_lost_scheduler_clear_error_checkpoint_intact(tmp_path, local_ds):
+    """A scheduler of our own (subprocess) killed during pass 2: DaskConnectionError, the
+    checkpoint of pass 1 untouched, and a resumed run ends with the uninterrupted numbers."""
+    port = _free_port()
+    env = dict(os.environ, PYTHONWARNINGS="ignore")
+    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", str(port),
+                              "--no-dashboard", "--host", "127.0.0.1"], env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", f"tcp://127.0.0.1:{port}",
+                               "--nthreads", "1", "--no-dashboard", "--no-nanny"], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    case = small_case(**SPLIT)
+    ckpt = tmp_path / "out.nc.checkpoint"
+    loop = CouplingLoop(case, checkpoint=ckpt)
+    loop.step()  # pass 1 (here, locally): its checkpoint is written
+    before = ckpt.read_bytes()
+    killed = []
+    try:
+        with dask_client(scheduler=f"tcp://127.0.0.1:{port}", timeout=60) as c:
+            c.wait_for_workers(1, timeout=60)
+
+            def kill_scheduler(futures, pass_index):
+                assert not any(f.done() for f in futures)
+                sched.kill()
+                killed.append(pass_index)
+
+            loop.tracker = DaskTracker(c, after_submit=kill_scheduler)
+            with pytest.raises(DaskConnectionError, match="pass 2: lost the Dask scheduler") as err:
+                loop.run()
+            assert isinstance(err.value, CouplingError) and "\n" not in str(err.value)
+    finally:
+        for p in (sched, worker):
+            p.kill()
+            p.wait()
+    assert killed == [2] and loop.pass_index == 2
+    assert ckpt.read_bytes() == before  # the checkpoint of the last complete pass, intact
+    assert not list(tmp_path.glob("*.tmp*"))
+    ds = run(case, tmp_path / "out.nc", resume=True)
+    data_vars_equal(local_ds, ds)
+
+
+def _free_port():
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 # ---------------------------------------------------------------------------- slow
