@@ -1,0 +1,312 @@
+"""eulag study: each study in --quick mode writes its datasets, a consistent table (Markdown +
+CSV, machine and wall times stated) and its figures; --resume reuses finished runs; a failing
+run is recorded with its diagnosis instead of stopping the study; bad input exits 2.
+
+Quick-mode numbers are not results: the tests check the machinery and the bookkeeping (row
+counts, finite numbers, lost parcels = 0), never specific values.
+"""
+
+import csv
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from eulag import studies
+from eulag.cli import main
+from eulag.config import CASES_DIR, Case
+
+ROOT = Path(__file__).resolve().parent.parent
+SHARED = Path(os.environ.get("EULAG_SHARED_DATA", ROOT.parent / "shared" / "data")).parent
+CHECK_DATASET = SHARED / "tools" / "check_dataset.py"
+BASE = CASES_DIR / "tsuji_morikawa_200um.toml"
+
+
+def study(*argv):
+    return main(["study", *[str(a) for a in argv]])
+
+
+def rows(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def number(text):
+    return float(text) if text not in ("", None) else math.nan
+
+
+def check_report(folder: Path, stem: str, n_rows: int):
+    readme = (folder / "README.md").read_text()
+    assert "Quick mode" in readme and "not results" in readme
+    assert "platform:" in readme and "CPUs:" in readme and "wall time of this invocation" in readme
+    table = rows(folder / f"{stem}.csv")
+    assert len(table) == n_rows
+    # the Markdown table has the same rows
+    md_rows = [ln for ln in readme.splitlines() if ln.startswith("| ") and not ln.startswith("| ---")]
+    assert len(md_rows) == n_rows + 1  # + the header
+    for ln in readme.splitlines():  # every figure the README shows exists
+        if ln.startswith("!["):
+            target = folder / ln[ln.index("(") + 1: ln.rindex(")")]
+            assert target.is_file() and target.stat().st_size > 1000, target
+    return table
+
+
+# ------------------------------------------------------------------------------ tsuji-morikawa
+
+@pytest.fixture(scope="module")
+def tm(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tsuji_morikawa")
+    status = study("tsuji-morikawa", "--quick", "--quiet", "-o", out)
+    return status, out
+
+
+def test_tsuji_morikawa_quick_compares_four_runs_with_the_digitised_profiles(tm):
+    status, out = tm
+    assert status == 0
+    assert sorted(p.name for p in out.glob("*.nc")) == [
+        "tm_U10_four-way.nc", "tm_U10_two-way.nc", "tm_U15_four-way.nc", "tm_U15_two-way.nc"]
+    assert not list(out.glob("*.checkpoint"))  # finished runs leave no checkpoint behind
+    table = check_report(out, "tsuji-morikawa", 8)  # 2 velocities x 2 couplings x (gas, particle)
+    assert {(r["U0"], r["coupling"], r["phase"]) for r in table} == {
+        (u, c, p) for u in ("10.0", "15.0") for c in ("four-way", "two-way") for p in ("gas", "particle")}
+    for r in table:
+        rms, mx = number(r["rms"]), number(r["max"])
+        assert np.isfinite(rms) and 0.0 <= rms <= mx + 1e-12
+        assert int(r["points"]) == 15  # the file's points per profile
+        assert number(r["time_s"]) > 0
+        if r["phase"] == "particle":
+            assert number(r["stderr"]) > 0.0  # the batch standard error of the simulation
+    assert (out / "tsuji_morikawa_profiles.png").stat().st_size > 10_000
+    readme = (out / "README.md").read_text()
+    assert "tsuji_morikawa_1982_horizontal_eta2.2.csv" in readme and "DIGITIZED" in readme
+
+
+def test_tsuji_morikawa_datasets_pass_the_schema_check(tm):
+    _, out = tm
+    if not CHECK_DATASET.exists():
+        pytest.skip(f"schema checker {CHECK_DATASET} not available")
+    check = subprocess.run([sys.executable, str(CHECK_DATASET), str(out / "tm_U10_four-way.nc"),
+                            "--particles"], capture_output=True, text=True)
+    assert check.returncode == 0, check.stdout + check.stderr
+
+
+def test_resume_reuses_finished_runs(tm, capsys):
+    status, out = tm
+    assert status == 0
+    before = {p.name: p.stat().st_mtime_ns for p in out.glob("*.nc")}
+    old = rows(out / "tsuji-morikawa.csv")
+    assert study("tsuji-morikawa", "--quick", "--resume", "-o", out) == 0
+    err = capsys.readouterr().err
+    assert err.count("not run again") == 4 and "running" not in err
+    assert {p.name: p.stat().st_mtime_ns for p in out.glob("*.nc")} == before
+    new = rows(out / "tsuji-morikawa.csv")
+    assert [r["rms"] for r in new] == [r["rms"] for r in old]
+
+
+# ------------------------------------------------------------------------------ scenes
+
+SCENE_TABLE = {  # the issue's table: D_p [um], Delta-gamma [deg], coupling, loading / eta0
+    "a": (200, 1.5, "four-way", 1), "b": (200, 10, "four-way", 1), "c": (200, 5, "two-way", 1),
+    "d": (200, 5, "four-way", 1), "e": (50, 10, "four-way", 1), "f": (50, 10, "four-way", 2),
+    "g": (50, 10, "two-way", 4), "h": (50, 10, "four-way", 4)}
+
+
+def test_scene_case_files_match_the_issue_table():
+    base = Case.from_toml(BASE)
+    for s, (dp, dg, coupling, f) in SCENE_TABLE.items():
+        case = Case.from_toml(CASES_DIR / "scenes" / f"scene_{s}.toml")
+        assert case.name == f"scene_{s}"
+        assert case.particles.diameter == pytest.approx(dp * 1e-6)
+        assert case.walls.roughness_angle_std_deg == dg
+        assert case.physics.coupling == coupling
+        assert case.physics.inter_particle_collisions == (coupling == "four-way")
+        assert case.particles.mass_loading == pytest.approx(2.2 * f)
+        assert case.gas.bulk_velocity == 10.0 and case.particles.density == 1020.0
+        assert case.pipe.sections == (3.56,)
+        # everything else is the base case's
+        assert case.replace(name=base.name, description=base.description,
+                            particles={"diameter": 200e-6, "mass_loading": 2.2},
+                            walls={"roughness_angle_std_deg": 1.5}, physics={"coupling": "four-way"},
+                            pipe={"reference_data": base.pipe.reference_data}) == base
+
+
+def check_scene_rows(table, names):
+    assert [r["scene"] for r in table] == names
+    for r in table:
+        assert np.isfinite(number(r["strength"])) and number(r["strength"]) >= 0
+        assert int(r["cells"]) >= 0
+        assert r["half"] in ("upper", "lower", "neither")
+        assert number(r["impact_upper"]) >= 0 and number(r["impact_lower"]) >= 0
+        assert np.isfinite(number(r["dpdx"]))
+        assert int(r["passes"]) >= 1 and number(r["time_s"]) > 0
+
+
+def test_scenes_quick_subset(tmp_path):
+    assert study("scenes", "--quick", "--quiet", "--only", "c,a", "-o", tmp_path) == 0
+    table = check_report(tmp_path, "scenes", 2)
+    check_scene_rows(table, ["a", "c"])
+    for s in "ac":
+        assert (tmp_path / f"scene_{s}.nc").is_file()
+        assert len(list((tmp_path / "figures").glob(f"scene_{s}_section*.png"))) == 1
+
+
+@pytest.mark.slow
+def test_scenes_quick_all_eight(tmp_path):
+    assert study("scenes", "--quick", "--quiet", "-o", tmp_path) == 0
+    check_scene_rows(check_report(tmp_path, "scenes", 8), list("abcdefgh"))
+
+
+# ------------------------------------------------------------------------------ error-runtime
+
+def test_error_runtime_plan_covers_the_axes_of_the_issue():
+    case = Case.from_toml(BASE)
+    for quick in (False, True):
+        runs, ref = studies.error_runtime_plan(case, quick)
+        settings = runs + [ref]
+        assert len({s.grid for s in settings}) >= 3
+        assert len({s.parcels for s in settings}) >= 4
+        assert len({s.step_factor for s in settings}) == 2
+        assert {s.step_rule for s in settings} == {"default", "paper"}
+        # the reference is the finest setting of every axis
+        assert ref.parcels == max(s.parcels for s in settings)
+        assert ref.step_factor == min(s.step_factor for s in settings)
+        assert ref.grid == max((s.grid for s in settings), key=lambda g: g[0] * g[1] * g[2])
+        if not quick:
+            assert min(s.parcels for s in settings) == 10_000
+            assert ref.grid == (400, 20, 40)
+
+
+def test_error_runtime_quick(tmp_path):
+    assert study("error-runtime", BASE, "--quick", "--quiet", "-o", tmp_path) == 0
+    table = check_report(tmp_path, "error-runtime", 9)
+    assert len(list(tmp_path.glob("*.nc"))) == 9
+    assert (tmp_path / "error_runtime.png").stat().st_size > 10_000
+    others = [r for r in table if r["axis"] != "reference"]
+    assert {r["axis"] for r in others} == {"centre", "grid", "parcels", "step factor", "step rule"}
+    for r in others:
+        total, disc = number(r["err_total"]), number(r["err_disc"])
+        assert np.isfinite(total) and 0.0 <= disc <= total + 1e-12
+        assert number(r["noise_particle"]) > 0.0
+        assert np.isfinite(number(r["meas_gas"])) and np.isfinite(number(r["meas_particle"]))
+    assert any(r["pareto"].startswith("yes") for r in others)
+    assert sum("best" in r["pareto"] for r in others) == 1
+    assert "Pareto front" in (tmp_path / "README.md").read_text()
+
+
+# ------------------------------------------------------------------------------ stability
+
+def test_stability_cases_cover_the_issue_list():
+    specs = studies.stability_cases(quick=False)
+    names = [s[0] for s in specs]
+    assert names == ["tracers_1um", "pellets_3.4mm", "loading_eta10", "loading_eta30", "roughness_20deg",
+                     "U0_5", "U0_30", "pipe_0.3m_Re1e6", "cells_4x", "parcels_1e6"]
+    cases = {name: case for name, _, case in specs}
+    assert cases["pipe_0.3m_Re1e6"].reynolds_number == pytest.approx(1e6)
+    assert cases["parcels_1e6"].numerics.parcels == 1_000_000
+    n0, n4 = Case.from_toml(BASE).numerics, cases["cells_4x"].numerics
+    assert (n4.axial_cells * n4.radial_cells * n4.azimuthal_cells
+            == 4 * n0.axial_cells * n0.radial_cells * n0.azimuthal_cells)
+
+
+def check_stability_rows(table):
+    for r in table:
+        assert r["converged"] in ("yes", "no", "failed", "rejected")
+        if r["converged"] in ("yes", "no"):
+            assert int(r["lost"]) == 0
+            assert r["nonfinite"] == "none"
+            assert number(r["k_min"]) > 0 and number(r["eps_min"]) > 0
+            assert int(r["stuck_total"]) >= 0
+            assert 0.05 <= number(r["relax_min"]) <= 1.0
+        if r["converged"] != "yes":
+            assert r["first_wrong"]  # a diagnosis
+
+
+def test_stability_quick_subset(tmp_path):
+    only = "pellets_3.4mm,U0_5,loading_eta30"
+    assert study("stability", "--quick", "--quiet", "--only", only, "-o", tmp_path) == 0
+    table = check_report(tmp_path, "stability", 3)
+    assert [r["case"] for r in table] == ["pellets_3.4mm", "loading_eta30", "U0_5"]  # the study's order
+    check_stability_rows(table)
+    assert (tmp_path / "stability_history.png").is_file()
+    assert "3.4 mm pellets" in (tmp_path / "README.md").read_text()
+
+
+@pytest.mark.slow
+def test_stability_quick_all(tmp_path):
+    assert study("stability", "--quick", "--quiet", "-o", tmp_path) == 0
+    check_stability_rows(check_report(tmp_path, "stability", 10))
+
+
+def test_a_failing_run_is_recorded_with_its_diagnosis(tmp_path, monkeypatch):
+    import eulag.coupling as coupling
+
+    calls = []
+
+    def failing_run(case, out=None, **kw):
+        calls.append(case.name)
+        raise coupling.CouplingError("pass 2: k < 0 in cell (3, 4, 7) after the gas solve")
+
+    monkeypatch.setattr(coupling, "run", failing_run)
+    case = studies._quick(Case.from_toml(BASE))
+    args = SimpleNamespace(resume=False, quiet=True)
+    rec = studies.run_case(args, "boom", case, tmp_path, "boom")
+    assert rec.status == "failed" and "k < 0" in rec.message and not rec.ok
+    assert (tmp_path / "boom.failed.json").is_file() and not (tmp_path / "boom.nc").exists()
+    n = len(calls)
+    again = studies.run_case(SimpleNamespace(resume=True, quiet=True), "boom", case, tmp_path, "boom")
+    assert again.reused and again.status == "failed" and len(calls) == n  # not run again
+    # a whole study goes on and reports it; failures are results of the stability study
+    assert study("stability", "--quick", "--quiet", "--only", "U0_30,eta", "-o", tmp_path) == 2
+    assert study("stability", "--quick", "--quiet", "--only", "U0_30", "-o", tmp_path) == 0
+    table = rows(tmp_path / "stability.csv")
+    assert table[0]["converged"] == "failed" and "k < 0" in table[0]["first_wrong"]
+    # ... while the other studies exit 1 when a run failed, after writing their table
+    assert study("scenes", "--quick", "--quiet", "--only", "a", "-o", tmp_path / "sc") == 1
+    assert "failed: pass 2: k < 0" in (tmp_path / "sc" / "README.md").read_text()
+
+
+# ------------------------------------------------------------------------------ helpers
+
+def test_pareto_front_keeps_the_non_dominated_points():
+    t = [1.0, 2.0, 3.0, 4.0, 2.5, math.nan]
+    e = [10.0, 5.0, 6.0, 1.0, 5.0, 0.1]
+    assert studies.pareto_front(t, e) == [0, 1, 3]
+
+
+def test_profile_deviation_in_percent():
+    d = studies.profile_deviation([1.0, 1.1, np.nan], [1.0, 1.0, 1.0], se=[0.01, 0.03, 0.02])
+    assert d["points"] == 2
+    assert d["rms"] == pytest.approx(100 * math.sqrt(0.01 / 2))
+    assert d["max"] == pytest.approx(10.0) and d["bias"] == pytest.approx(5.0)
+    assert d["stderr"] == pytest.approx(100 * math.sqrt((0.01**2 + 0.03**2) / 2))
+
+
+# ------------------------------------------------------------------------------ bad input
+
+@pytest.mark.parametrize("argv, message", [
+    (["study"], "required"),
+    (["study", "nonsense"], "invalid choice"),
+    (["study", "error-runtime", "no_such_case.toml", "--quick"], "no such case file"),
+    (["study", "error-runtime", CASES_DIR / "single_phase_pipe.toml", "--quick"], "single-phase"),
+    (["study", "scenes", "--quick", "--only", "a,z"], "unknown scenes z"),
+    (["study", "stability", "--quick", "--only", "tracers"], "unknown cases tracers"),
+    (["study", "tsuji-morikawa", "--quick", "--frobnicate"], "unrecognized arguments"),
+])
+def test_bad_input_exits_2_with_one_line(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main([str(a) for a in argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("eulag: error:") and message in err[0]
+    assert not (tmp_path / "results").exists() or not any((tmp_path / "results").rglob("*.nc"))
+
+
+def test_output_dir_that_is_a_file_exits_2(tmp_path, capsys):
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert study("scenes", "--quick", "-o", f) == 2
+    assert "not a directory" in capsys.readouterr().err
