@@ -61,6 +61,8 @@ SCENE_NAMES = tuple("abcdefgh")
 #: collision statistics, one final pass with them)
 QUICK_NUMERICS = {"axial_cells": 16, "radial_cells": 5, "azimuthal_cells": 12, "parcels": 400,
                   "parcels_start": 300, "max_passes": 2, "average_passes": 1, "batch_size": 50}
+#: what the stability study's quick mode changes further (fewer parcels)
+STABILITY_QUICK = {"parcels": 200, "parcels_start": 200, "batch_size": 25}
 #: numerics of the warm-up run that compiles the particle kernels of a physics-option set
 _WARMUP_NUMERICS = {"axial_cells": 10, "radial_cells": 4, "azimuthal_cells": 8, "parcels": 64,
                     "parcels_start": 64, "max_passes": 2, "average_passes": 1, "batch_size": 8}
@@ -109,7 +111,31 @@ def _common(p, name: str) -> None:
     p.add_argument("--resume", action="store_true",
                    help="keep finished runs, continue interrupted ones from their checkpoints")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    if name != "error-runtime":  # there the parcel count is an axis of the study
+        p.add_argument("--parcels", type=_positive_int, metavar="N",
+                       help="parcels per pass in the final passes of every run (a lighter full-mode "
+                            "study; the stability study's 1e6-parcel case keeps its count)")
     p.set_defaults(study_name=name)
+
+
+def _positive_int(text: str) -> int:
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; allowed: an integer >= 1") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} is out of range; allowed: an integer >= 1")
+    return value
+
+
+def _with_parcels(case: Case, parcels: int | None) -> Case:
+    """``case`` with ``parcels`` per final pass (and at most that many earlier); None: unchanged."""
+    if parcels is None:
+        return case
+    return case.replace(numerics={"parcels": parcels,
+                                  "parcels_start": min(case.numerics.parcels_start, parcels)})
 
 
 def _entry(study: Callable) -> Callable:
@@ -566,7 +592,8 @@ def _settings_text(cases: list[Case], quick: bool) -> str:
             f"{n.step_factor:g}, coupling tolerance {n.coupling_tolerance:g}, seed {n.seed}. "
             "Model constants are the paper's (PHYSICS.md §12); nothing is tuned to the measurements.")
     if quick:
-        text += f" Quick mode replaces the numerics of every case by {QUICK_NUMERICS}."
+        text += (f" Quick mode replaces the numerics of every case by {QUICK_NUMERICS} (the stability "
+                 f"study further by {STABILITY_QUICK}; error-runtime varies grid, parcels and step).")
     return text
 
 
@@ -715,9 +742,9 @@ TM_VELOCITIES = (10.0, 15.0)
 TM_COUPLINGS = ("four-way", "two-way")
 
 
-def tsuji_morikawa_cases(quick: bool) -> list[tuple[str, Case]]:
+def tsuji_morikawa_cases(quick: bool, parcels: int | None = None) -> list[tuple[str, Case]]:
     """The four runs: base case at U0 = 10 and 15 m/s, four-way and two-way coupling."""
-    base = _base_case(quick)
+    base = _with_parcels(_base_case(quick), parcels)
     out = []
     for u0 in TM_VELOCITIES:
         for coupling in TM_COUPLINGS:
@@ -729,7 +756,7 @@ def tsuji_morikawa_cases(quick: bool) -> list[tuple[str, Case]]:
 
 
 def study_tsuji_morikawa(args, outdir: Path, t_start: float) -> int:
-    cases = tsuji_morikawa_cases(args.quick)
+    cases = tsuji_morikawa_cases(args.quick, getattr(args, "parcels", None))
     base = cases[0][1]
     ref_path = base.reference_data_path()
     if ref_path is None:
@@ -846,13 +873,13 @@ def _tm_figure(path: Path, cases, curves, meas, x) -> Path:
 # 2. the scene matrix
 # =====================================================================================
 
-def scene_cases(quick: bool, names=SCENE_NAMES) -> list[tuple[str, Case]]:
+def scene_cases(quick: bool, names=SCENE_NAMES, parcels: int | None = None) -> list[tuple[str, Case]]:
     """The shipped scene files cases/scenes/scene_<a..h>.toml (quick: with the quick numerics)."""
     out = []
     for s in names:
         path = SCENES_DIR / f"scene_{s}.toml"
         case = Case.from_toml(path)
-        out.append((f"scene_{s}", _quick(case) if quick else case))
+        out.append((f"scene_{s}", _with_parcels(_quick(case) if quick else case, parcels)))
     return out
 
 
@@ -861,7 +888,7 @@ def study_scenes(args, outdir: Path, t_start: float) -> int:
 
     names = _select(getattr(args, "only", None), list(SCENE_NAMES), "scenes")
     try:
-        cases = scene_cases(args.quick, names)
+        cases = scene_cases(args.quick, names, getattr(args, "parcels", None))
     except CaseError as exc:
         raise _BadInput(str(exc)) from None
     figdir = outdir / "figures"
@@ -954,13 +981,13 @@ def error_runtime_plan(case: Case, quick: bool) -> tuple[list[Setting], Setting]
     Full mode: grids at 0.5, 0.75 and 1 times the case's cells per direction; 1e4, 3e4, 1e5 and
     3e5 parcels per pass; step factors f0 and f0/2 (f0 the case's); step rules default and
     paper. Centre: the case's grid, 3e4 parcels, f0, the default rule. Quick mode: tiny grids and
-    200-1600 parcels.
+    100-800 parcels.
     """
     n = case.numerics
     f0 = n.step_factor
     if quick:
-        grids = [(10, 4, 8), (16, 5, 12), (24, 7, 16)]
-        parcels = [200, 400, 800, 1600]
+        grids = [(10, 4, 8), (12, 4, 10), (16, 5, 12)]
+        parcels = [100, 200, 400, 800]
     else:
         base = (n.axial_cells, n.radial_cells, n.azimuthal_cells)
         grids = [(max(10, int(round(f * base[0]))), max(4, int(round(f * base[1]))), _even(f * base[2]))
@@ -986,7 +1013,7 @@ def _setting_case(case: Case, s: Setting, quick: bool) -> Case:
                 "parcels": s.parcels, "parcels_start": min(num.get("parcels_start", n.parcels_start), s.parcels),
                 "step_factor": s.step_factor, "step_rule": s.step_rule})
     if quick:
-        num["batch_size"] = max(16, s.parcels // 8)
+        num["batch_size"] = max(8, s.parcels // 8)
     if s.reference:
         num["seed"] = (n.seed + 1000) % (2 ** 63)  # its noise independent of the other runs'
     return case.replace(name=f"{case.name}_{s.name}", numerics=num)
@@ -1185,14 +1212,18 @@ def _reynolds_velocity(case: Case, diameter: float, re: float) -> float:
     return re * case.gas.viscosity / (case.gas.density * diameter)
 
 
-def stability_cases(quick: bool) -> list[tuple[str, str, Case | CaseError]]:
+def stability_cases(quick: bool, parcels: int | None = None) -> list[tuple[str, str, Case | CaseError]]:
     """(name, what changes, case or the CaseError the change raised) for every stiff/extreme case.
 
     Each derives from the base case (200 µm, eta = 2.2, Delta-gamma = 1.5 deg, U0 = 10 m/s,
-    four-way); quick mode on the quick numerics, where "4x cells" doubles the radial and
-    azimuthal cells of the quick grid and "1e6 parcels" is 8x the quick parcels.
+    four-way); quick mode on the quick numerics with 200 parcels (the 1 µm tracers take ~10^5
+    steps each), where "4x cells" doubles the radial and azimuthal cells of the quick grid and
+    "1e6 parcels" is 8x the quick parcels.
     """
-    base = _base_case(quick)
+    base = _base_case(False)
+    if quick:
+        base = _quick(base, **STABILITY_QUICK)
+    base = _with_parcels(base, parcels)
     n = base.numerics
     d0, length, sections = base.pipe.diameter, base.pipe.length, base.pipe.sections
     d_big = 0.3
@@ -1254,7 +1285,7 @@ def _wall_cell_thickness(case: Case) -> float:
 
 
 def study_stability(args, outdir: Path, t_start: float) -> int:
-    specs = stability_cases(args.quick)
+    specs = stability_cases(args.quick, getattr(args, "parcels", None))
     names = _select(getattr(args, "only", None), [s[0] for s in specs], "cases")
     specs = [s for s in specs if s[0] in names]
     records = []
@@ -1359,6 +1390,10 @@ def _stability_figure(path: Path, specs, records) -> Path:
     if ax1.get_legend_handles_labels()[0]:
         ax1.legend(fontsize=7)
     ax1.set_title("residual (solid: converged, dashed: not, dotted: failed)", fontsize=9)
+    from matplotlib.ticker import MaxNLocator
+
+    for ax in (ax1, ax2):
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax2.set_xlabel("coupling pass")
     ax2.set_ylabel("source under-relaxation used [1]")
     ax2.grid(alpha=0.3)

@@ -108,6 +108,21 @@ def test_resume_reuses_finished_runs(tm, capsys):
     assert [r["rms"] for r in new] == [r["rms"] for r in old]
 
 
+def test_resume_continues_an_interrupted_run_from_its_checkpoint(tmp_path, capsys):
+    from eulag.coupling import CouplingLoop
+
+    name, case = studies.tsuji_morikawa_cases(quick=True)[0]
+    loop = CouplingLoop(case, checkpoint=tmp_path / f"{name}.nc.checkpoint")
+    loop.step()  # "killed" after the first pass
+    del loop
+    capsys.readouterr()
+    rec = studies.run_case(SimpleNamespace(resume=True, quiet=False), name, case, tmp_path, name)
+    err = capsys.readouterr().err
+    assert rec.ok and rec.passes == case.numerics.max_passes
+    assert f"{name}: pass 2 " in err and f"{name}: pass 1 " not in err  # pass 1 was not run again
+    assert (tmp_path / f"{name}.nc").is_file() and not (tmp_path / f"{name}.nc.checkpoint").exists()
+
+
 # ------------------------------------------------------------------------------ scenes
 
 SCENE_TABLE = {  # the issue's table: D_p [um], Delta-gamma [deg], coupling, loading / eta0
@@ -199,6 +214,15 @@ def test_error_runtime_quick(tmp_path):
 
 
 # ------------------------------------------------------------------------------ stability
+
+def test_parcels_option_lightens_every_run_but_the_million_parcel_case():
+    for name, case in studies.tsuji_morikawa_cases(quick=False, parcels=20_000):
+        assert case.numerics.parcels == 20_000 and case.numerics.parcels_start == 20_000
+    assert all(c.numerics.parcels == 5000 for _, c in studies.scene_cases(False, parcels=5000))
+    cases = {name: c for name, _, c in studies.stability_cases(quick=False, parcels=20_000)}
+    assert cases["parcels_1e6"].numerics.parcels == 1_000_000
+    assert cases["U0_5"].numerics.parcels == 20_000
+
 
 def test_stability_cases_cover_the_issue_list():
     specs = studies.stability_cases(quick=False)
@@ -296,6 +320,8 @@ def test_profile_deviation_in_percent():
     (["study", "scenes", "--quick", "--only", "a,z"], "unknown scenes z"),
     (["study", "stability", "--quick", "--only", "tracers"], "unknown cases tracers"),
     (["study", "tsuji-morikawa", "--quick", "--frobnicate"], "unrecognized arguments"),
+    (["study", "scenes", "--quick", "--parcels", "0"], "out of range"),
+    (["study", "error-runtime", BASE, "--parcels", "100"], "unrecognized arguments"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
