@@ -86,7 +86,7 @@ def make_client(scheduler=None, local_workers=None, *, threads_per_worker=1, mem
     if int(local_workers) < 1:
         raise ValueError(f"local_workers = {local_workers}: allowed an integer >= 1")
     cluster = dd.LocalCluster(n_workers=int(local_workers), threads_per_worker=int(threads_per_worker),
-                              processes=True, dashboard_address=None, memory_limit=memory_limit,
+                              processes=True, dashboard_address=":0", memory_limit=memory_limit,
                               silence_logs=logging.ERROR)
     return dd.Client(cluster)
 
