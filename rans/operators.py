@@ -25,6 +25,8 @@ import math
 import numpy as np
 import scipy.sparse as sp
 
+from .linalg import BlockStructure
+
 __all__ = ["Section"]
 
 
@@ -113,6 +115,7 @@ class Section:
         self._perm = probe.data.astype(np.int64) - 1
         self._indices = probe.indices.copy()
         self._indptr = probe.indptr.copy()
+        self._blocks = BlockStructure(n, nt, self.P, self.N, self.matrix)
         # scatter matrices face -> cell (sum over faces of a cell, signed/unsigned)
         f = np.arange(self.nf)
         self._sum_P = sp.csr_matrix((np.ones(self.nf), (self.P, f)), shape=(n, self.nf))
@@ -137,6 +140,11 @@ class Section:
         """CSC matrix with diagonal ``diag``, entry (P, N) = a_PN and (N, P) = a_NP per face."""
         data = np.concatenate([diag, a_PN, a_NP])[self._perm]
         return sp.csc_matrix((data, self._indices, self._indptr), shape=(self.n, self.n))
+
+    def factor(self, diag, a_PN, a_NP):
+        """Direct factorisation of :meth:`matrix` (block-tridiagonal LU over the rings,
+        :mod:`rans.linalg`); the result has ``.solve(b)``."""
+        return self._blocks.factor(diag, a_PN, a_NP)
 
     def transport(self, flux, gamma_f, scheme="upwind"):
         """Convection-diffusion coefficients for the non-conservative (continuity-subtracted) form.

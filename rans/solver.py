@@ -260,7 +260,7 @@ class _StationSolver:
         au = self.alpha_u
         relax_u = (1.0 - au) / au * diag_m
         diag_m = diag_m / au
-        lu = splu(sec.matrix(diag_m, aPN, aNP))
+        lu = sec.factor(diag_m, aPN, aNP)
 
         # axial velocity, mass flow fixed through the mean pressure gradient G = -dp/dx
         b = ax * hist["ux"] + src["mx"] * A + relax_u * st.ux
@@ -335,7 +335,7 @@ class _StationSolver:
             if relax_turb < 1.0:  # implicit (Patankar) under-relaxation
                 bk += (1.0 - relax_turb) / relax_turb * dk * st.k
                 dk = dk / relax_turb
-            k_new = splu(sec.matrix(dk, kPN, kNP)).solve(bk)
+            k_new = sec.factor(dk, kPN, kNP).solve(bk)
             self.check("k", k_new, positive=True)
             low_k = k_new < self.k_floor
             # epsilon equation (fixed value in the wall cells)
@@ -349,7 +349,7 @@ class _StationSolver:
             big = 1e12 * de[wall]
             de[wall] += big
             be[wall] += big * ke.wall_epsilon(k_new[wall], yP)
-            eps_new = splu(sec.matrix(de, ePN, eNP)).solve(be)
+            eps_new = sec.factor(de, ePN, eNP).solve(be)
             self.check("epsilon", eps_new, positive=True)
             # floors (PHYSICS.md 6.4) where strong particle sinks laminarise a pocket of the
             # flow; k and eps are positive here already, the floors keep nu_t and k/eps finite.
@@ -401,7 +401,7 @@ class _StationSolver:
         coef = rho * d_f * sec.S / sec.delta
         diag_p = sec.fsum @ coef
         diag_p[sec.wall[0]] += diag_p.max() * 1e3  # pin the level of p' (pure Neumann problem)
-        pc = splu(sec.matrix(diag_p, -coef, -coef)).solve(-imbalance)
+        pc = sec.factor(diag_p, -coef, -coef).solve(-imbalance)
         flux = flux + coef * (pc[sec.P] - pc[sec.N])
         cz, cy = sec.reconstruct(-sec.normal_difference(pc), np.zeros(nwall))
         uz = uz + dP * cz
