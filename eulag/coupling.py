@@ -49,7 +49,7 @@ from collisions import InterparticleOptions, WallOptions
 __all__ = ["CouplingLoop", "PassState", "CouplingError", "run", "physics_options", "particle_spec",
            "build_mesh", "CHECKPOINT_VERSION"]
 
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2
 MIN_RELAXATION = 0.05
 _FLOOR = 0.01  # noise floor of the residual, as a fraction of the RMS source
 _INTEGRAL_TOL = 0.01  # pressure gradient and mass balance, relative
@@ -132,6 +132,7 @@ class _History:
     mass_balance: list = field(default_factory=list)
     time_gas: list = field(default_factory=list)
     time_particles: list = field(default_factory=list)
+    floored: list = field(default_factory=list)
 
     def arrays(self):
         return {k: np.asarray(v, dtype=np.float64) for k, v in self.__dict__.items()}
@@ -286,6 +287,8 @@ class CouplingLoop:
         h.mass_balance.append(mass_balance)
         h.time_gas.append(t_gas)
         h.time_particles.append(t_part)
+        fl = self.gas.floored
+        h.floored.append(int(np.sum(fl)) if fl is not None else 0)
         self.last_sample = sample
         if self.phase == "final":
             self._add_to_window(sample)
@@ -456,6 +459,7 @@ class CouplingLoop:
         self.history.parcels = [int(v) for v in self.history.parcels]
         self.history.lost = [int(v) for v in self.history.lost]
         self.history.stuck = [int(v) for v in self.history.stuck]
+        self.history.floored = [int(v) for v in self.history.floored]
         for k in ("pass_index", "phase", "final_left", "converged", "finished", "alpha", "window_n",
                   "window_batches", "window_parcels"):
             setattr(self, k, meta[k])

@@ -266,6 +266,10 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
     ds["parcels_stuck"] = xr.Variable(it, h["stuck"].astype(np.int64),
                                       {"long_name": "parcels stopped by the residence-time cap", "units": "1"})
     ds["relaxation"] = _var(it, h["relaxation"], "1", "source under-relaxation factor used in the pass")
+    ds["gas_floored_cells"] = xr.Variable(
+        it, h["floored"].astype(np.int64),
+        {"long_name": "gas cells held at the k/epsilon floors after the pass's gas solve (should be 0)",
+         "units": "1"})
     ds["pressure_gradient_history"] = _var(it, h["pressure_gradient"], "Pa m-1",
                                            "pipe-mean -dp/dx after the pass's gas solve")
     ds["time_gas_solve_pass"] = _var(it, h["time_gas"], "s", "wall-clock time of the pass's gas solve")

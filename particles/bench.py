@@ -1,6 +1,11 @@
 """Benchmark of a Lagrangian pass: parcel-steps per second per core, warm; compile time apart.
 
     python -m particles.bench [--parcels N] [--physics all|minimal]
+    python -m particles.bench --switches [--parcels N]
+
+``--switches``: the same pass with everything on and with Magnus lift, particle rotation and
+inter-particle collisions switched off (a scene that does not need them runs a kernel that
+does not contain them); interleaved rounds, best of each, pass time and steps/s ratios.
 
 The fully developed 30.5 mm pipe (20 × 40 cross-section, U0 = 10 m/s, single-phase gas),
 Tsuji–Morikawa base particles (200 µm, 1020 kg/m3, η = 2.2, Δγ = 1.5°) with everything on:
@@ -56,11 +61,55 @@ def run(parcels=20000, physics="all", length=1.0):
     return t_first, results
 
 
+def compare_switches(parcels=20000, rounds=3, length=1.0):
+    """Pass wall times with all physics on and with Magnus, rotation and collisions off."""
+    gas_props = GasProperties(1.205, 1.81e-5)
+    mesh = PipeMesh.build(0.0305, length, mode="periodic", radial_cells=20, azimuthal_cells=40)
+    gas = solve(mesh, gas_props, 10.0, 1.0, ke.inlet_epsilon(1.0, 0.0305))
+    spec = ParticleSpec(200e-6, 1020.0, 2.2, 10.0, 0.5, 1.5)
+    variants = {"all on": PhysicsOptions(),
+                "magnus, rotation, collisions off": PhysicsOptions(magnus_lift=False, rotation=False,
+                                                                    inter_particle_collisions=False)}
+    first = track(mesh, gas, spec, variants["all on"], parcels=parcels, seed=1, pass_index=0)
+    stats = first.cell_statistics(gas)
+    compile_s = {}
+    for name, opt in variants.items():  # compile (or load from cache) apart
+        t0 = time.perf_counter()
+        track(mesh, gas, spec, opt, parcels=1000, seed=1, pass_index=1, stats=stats)
+        compile_s[name] = time.perf_counter() - t0
+    best = {name: (np.inf, None) for name in variants}
+    for _ in range(rounds):
+        for name, opt in variants.items():
+            t0 = time.perf_counter()
+            s = track(mesh, gas, spec, opt, parcels=parcels, seed=1, pass_index=1, stats=stats)
+            t = time.perf_counter() - t0
+            if t < best[name][0]:
+                best[name] = (t, s)
+    return compile_s, best
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--parcels", type=int, default=20000)
     ap.add_argument("--physics", choices=("all", "minimal"), default="all")
+    ap.add_argument("--switches", action="store_true",
+                    help="compare all-on with Magnus, rotation and collisions off")
     args = ap.parse_args(argv)
+    if args.switches:
+        compile_s, best = compare_switches(args.parcels)
+        print(f"# particles.bench --switches  ({platform.machine()}, {os.cpu_count()} cores, "
+              f"numba {numba.__version__}, {numba.get_num_threads()} threads, parcels={args.parcels})")
+        rows = []
+        for name, (t, s) in best.items():
+            c = s.counts
+            assert c["lost"] == 0
+            rows.append((name, t, c["steps"]))
+            print(f"{name:34s}: pass {t:.3f} s (compile/load {compile_s[name]:.1f} s apart), "
+                  f"{c['steps']:,} parcel-steps, {c['steps'] / t / 1e6:.2f} M steps/s")
+        (_, t_on, n_on), (_, t_off, n_off) = rows
+        print(f"pass time ratio all-on / switched-off: {t_on / t_off:.2f}x; "
+              f"per-step cost ratio: {(t_on / n_on) / (t_off / n_off):.2f}x")
+        return
     t_first, results = run(args.parcels, args.physics)
     print(f"# particles.bench  ({platform.machine()}, {os.cpu_count()} cores, numba {numba.__version__},"
           f" physics={args.physics}, parcels={args.parcels})")
