@@ -46,6 +46,24 @@ def setup(parcels):
     return mesh, gas, spec, stats, settings
 
 
+def _cpu(client):
+    """CPU seconds used so far by the tracking process(es): this one, or each worker."""
+    if client is None:
+        return {"local": time.process_time()}
+    return client.run(time.process_time)
+
+
+def _cpu_model():
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "?"
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--parcels", type=int, default=102400)
@@ -55,7 +73,7 @@ def main(argv=None):
     args = (mesh, gas, spec, particles.PhysicsOptions())
     kw = dict(parcels=opt.parcels, seed=1, pass_index=1, stats=stats, settings=settings)
     _, _, supers = particles.batch_plan(opt.parcels, settings)
-    print(f"# bench_dask  ({platform.machine()}, {platform.processor() or '?'}, {os.cpu_count()} cores, "
+    print(f"# bench_dask  ({platform.machine()}, {_cpu_model()}, {os.cpu_count()} cores, "
           f"numba {numba.__version__} ({numba.config.THREADING_LAYER} layer), "
           f"NUMBA_CPU_NAME={os.environ.get('NUMBA_CPU_NAME', '(host)')})")
     print(f"# pass: {opt.parcels} parcels, {len(supers)} super-batches, four-way, periodic 20x40 mesh; "
@@ -78,11 +96,16 @@ def main(argv=None):
             t0 = time.perf_counter()
             result[name] = tracker(*args, **kw)
             first[name] = time.perf_counter() - t0
+        clients = {"local, 1 thread": None, "dask, 1 worker x 1 thread": c1, "dask, 2 workers x 1 thread": c2}
+        cpu = {k: [] for k in setups}
         for _ in range(opt.repeats):  # interleaved, so a change of background load hits all alike
             for name, tracker in setups.items():
+                c0 = _cpu(clients[name])
                 t0 = time.perf_counter()
                 s = tracker(*args, **kw)
                 warm[name].append(time.perf_counter() - t0)
+                c_1 = _cpu(clients[name])
+                cpu[name].append([c_1[w] - c0[w] for w in c0])
                 assert np.array_equal(s.total, result[name].total)
     ref = result["local, 1 thread"]
     c = ref.counts
@@ -95,6 +118,12 @@ def main(argv=None):
         print(f"{name:28s} first pass {first[name]:6.2f} s (compile ~{max(first[name] - best, 0):5.2f} s);  "
               f"warm best {best:6.2f} s, mean {np.mean(times):6.2f} s;  bit-identical to local: "
               f"{'yes' if same else 'NO'}")
+    print("# CPU seconds each tracking process got during the timed passes (wall x 1.0 = a whole core; "
+          "less: the core was shared with other processes):")
+    for name in setups:
+        for t, per in zip(warm[name], cpu[name]):
+            print(f"#   {name:28s} wall {t:6.2f} s, CPU per process " + ", ".join(f"{c:6.2f} s" for c in per)
+                  + f"  (share of a core: " + ", ".join(f"{c / t:.2f}" for c in per) + ")")
     loc = min(warm["local, 1 thread"])
     d1 = min(warm["dask, 1 worker x 1 thread"])
     d2 = min(warm["dask, 2 workers x 1 thread"])
