@@ -239,6 +239,7 @@ def _run_coupled(args, case: Case, out: Path, t_start: float) -> int:
     from eulag.coupling import CouplingError, CouplingLoop
     from eulag.output import coupled_dataset, write_dataset
 
+    client, tracker = _dask_tracker(args)  # before the progress bar: it prints the cluster line
     bar = None
     if not args.quiet:
         from tqdm import tqdm
@@ -252,9 +253,7 @@ def _run_coupled(args, case: Case, out: Path, t_start: float) -> int:
             bar.set_postfix_str(f"residual {state.residual:.3g}, -dp/dx {state.pressure_gradient:.4g} Pa/m, "
                                 f"{state.parcels} parcels, {state.phase}")
 
-    client = None
     try:
-        client, tracker = _dask_tracker(args)
         loop = CouplingLoop(case, checkpoint=ckpt, resume=args.resume, progress=progress, tracker=tracker)
         if bar is not None and loop.pass_index:
             bar.update(loop.pass_index)
