@@ -81,6 +81,9 @@ def test_tsuji_morikawa_quick_compares_four_runs_with_the_digitised_profiles(tm)
         assert number(r["time_s"]) > 0
         if r["phase"] == "particle":
             assert number(r["stderr"]) > 0.0  # the batch standard error of the simulation
+    points = rows(out / "tsuji-morikawa_points.csv")
+    assert len(points) == 4 * 2 * 15
+    assert all(np.isfinite(number(pt["simulated"])) for pt in points)
     assert (out / "tsuji_morikawa_profiles.png").stat().st_size > 10_000
     readme = (out / "README.md").read_text()
     assert "tsuji_morikawa_1982_horizontal_eta2.2.csv" in readme and "DIGITIZED" in readme
