@@ -310,7 +310,7 @@ def write_summary(rows, output_dir):
 
     def write_md(tmp):
         n_ok = sum(1 for r in rows if r["status"] in (RAN, FINISHED_EARLIER) and r["converged"] is True)
-        lines = [f"# eulag sweep: {len(rows)} cases, {n_ok} finished and converged", "",
+        lines = [f"# eulag sweep: {len(rows)} case{'' if len(rows) == 1 else 's'}, {n_ok} finished and converged", "",
                  "| " + " | ".join(_HEADERS[c] for c in COLUMNS) + " |",
                  "|" + "|".join("---" for _ in COLUMNS) + "|"]
         for r in rows:
