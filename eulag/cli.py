@@ -300,7 +300,9 @@ def _dask_client(args):
     if not os.environ.get("EULAG_DEBUG"):
         # the distributed loggers print tracebacks on a lost connection; the error is reported
         # in one line by us
-        logging.getLogger("distributed").setLevel(logging.CRITICAL)
+        for name in ["distributed", *logging.root.manager.loggerDict]:
+            if name == "distributed" or name.startswith("distributed."):
+                logging.getLogger(name).setLevel(logging.CRITICAL + 1)
     try:
         return make_client(scheduler=args.scheduler, local_workers=args.dask_local)
     except DaskConnectionError as exc:
@@ -327,8 +329,9 @@ def _close_dask(client) -> None:
     import contextlib
 
     cluster = getattr(client, "cluster", None)  # a LocalCluster of --dask-local; None for --scheduler
+    lost = getattr(client, "status", "") not in ("running", "connecting", "newly-created")
     with contextlib.suppress(Exception):
-        client.close(timeout=10)
+        client.close(timeout=2 if lost else 10)
     if cluster is not None:
         with contextlib.suppress(Exception):
             cluster.close(timeout=10)
