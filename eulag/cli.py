@@ -426,7 +426,8 @@ def cmd_sweep(args) -> int:
             numba_threads = 1  # one numba thread per Dask worker thread
             if say:
                 say(describe(client))
-        rows = sweep.run_sweep(entries, client, numba_threads=numba_threads, progress=say)
+        rows = sweep.run_sweep(entries, client, numba_threads=numba_threads, progress=say,
+                               summary_dir=args.output_dir)
     except Exception as exc:
         from eulag.distributed import DaskConnectionError
 

@@ -15,8 +15,8 @@ as ``eulag run --resume`` recognises it; or ended unconverged after all its pass
 again; a case that was interrupted continues from its checkpoint.  A case task whose worker
 dies is re-run by Dask, and then also continues from the checkpoint.
 
-At the end (also after failures or an interruption) ``DIR/sweep_summary.csv`` and
-``DIR/sweep_summary.md`` list per case: status (ran | finished earlier | failed | not run),
+After every finished case and at the end (also after failures or an interruption)
+``DIR/sweep_summary.csv`` and ``DIR/sweep_summary.md`` list per case: status (ran | finished earlier | failed | not run),
 converged, passes, final residual, section-mean −dp/dx, the single-phase −dp/dx, the
 pressure-drop ratio and λ_Z (gas–particle cases), wall time, output and the error message.
 
@@ -210,12 +210,14 @@ def _run_single_phase(case, output, t0):
 
 
 # ---------------------------------------------------------------------------- the sweep
-def run_sweep(entries, client=None, *, numba_threads=None, progress=None):
+def run_sweep(entries, client=None, *, numba_threads=None, progress=None, summary_dir=None):
     """Run the unfinished cases of ``entries`` (from :func:`plan_sweep`); rows in input order.
 
     client : a dask.distributed.Client (each case one task) or None (one after another here).
     numba_threads : numba threads per case (None: numba's default; on Dask workers with one
         thread each, 1).  progress : callable(str) for one line per case, or None.
+    summary_dir : if given, the summary files there are rewritten after every case, so a
+    long sweep always has an up-to-date table (cases still to come say "not run").
     On an interruption or a lost scheduler the rows of the cases not done say "not run".
     """
     say = progress or (lambda line: None)
@@ -229,10 +231,15 @@ def run_sweep(entries, client=None, *, numba_threads=None, progress=None):
             todo.append(e)
     done = 0
 
+    def current():
+        return [rows.get(e.name) or summary_row(e.name, None, e.output, NOT_RUN, "") for e in entries]
+
     def report(row):
         nonlocal done
         done += 1
         rows[row["case"]] = row
+        if summary_dir is not None:
+            write_summary(current(), summary_dir)
         if row["status"] == FAILED:
             what = f"FAILED: {row['error']}"
         else:

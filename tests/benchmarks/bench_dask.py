@@ -123,7 +123,7 @@ def main(argv=None):
     for name in setups:
         for t, per in zip(warm[name], cpu[name]):
             print(f"#   {name:28s} wall {t:6.2f} s, CPU per process " + ", ".join(f"{c:6.2f} s" for c in per)
-                  + f"  (share of a core: " + ", ".join(f"{c / t:.2f}" for c in per) + ")")
+                  + "  (share of a core: " + ", ".join(f"{c / t:.2f}" for c in per) + ")")
     loc = min(warm["local, 1 thread"])
     d1 = min(warm["dask, 1 worker x 1 thread"])
     d2 = min(warm["dask, 2 workers x 1 thread"])
