@@ -20,8 +20,8 @@ After every finished case and at the end (also after failures or an interruption
 converged, passes, final residual, section-mean −dp/dx, the single-phase −dp/dx, the
 pressure-drop ratio and λ_Z (gas–particle cases), wall time, output and the error message.
 
-Bad input (a missing or invalid case file, two cases with the same name, an output that holds
-a different case) is reported before any case starts.  Exit status: 0 all cases finished and
+Bad input (a missing or invalid case file, two cases with the same name, an output or a
+checkpoint that holds a different case) is reported before any case starts.  Exit status: 0 all cases finished and
 converged, 2 bad input, 1 otherwise (the summary says which).
 """
 
@@ -106,11 +106,45 @@ def plan_sweep(paths, output_dir=".", parcels=None):
         except _Fail as exc:
             msg = str(exc).replace("--resume: ", "")
             raise SweepInputError(f"case {e.name} ({e.path}): {msg}") from None
+        if not e.finished:
+            problem = _checkpoint_problem(Path(str(e.output) + ".checkpoint"), e.case)
+            if problem:
+                raise SweepInputError(f"case {e.name} ({e.path}): {problem}")
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise SweepInputError(f"-o {outdir}: cannot create the directory ({exc})") from None
     return entries
+
+
+def _checkpoint_problem(ckpt, case):
+    """Why the checkpoint beside a case's output cannot be resumed by this case (None: it can,
+    or there is none).  The same checks as CouplingLoop's resume, on the metadata only."""
+    if not ckpt.is_file():
+        return None
+    import json
+
+    import numpy as np
+
+    from eulag import coupling
+
+    try:
+        with np.load(ckpt, allow_pickle=False) as z:
+            meta = json.loads(bytes(z["meta"]).decode())
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
+        return f"{ckpt}: not a readable eulag checkpoint ({exc}); remove it to start the case afresh"
+    if meta.get("version") != coupling.CHECKPOINT_VERSION:
+        return (f"{ckpt}: checkpoint version {meta.get('version')} is not {coupling.CHECKPOINT_VERSION} "
+                "(an older eulag); remove it to start the case afresh")
+    try:
+        mine = json.loads(json.dumps(case.to_attrs(), default=coupling._json_default))
+        same = coupling._canonical(meta["case"]) == coupling._canonical(mine)
+    except Exception:  # noqa: BLE001 - leave the verdict to the run itself
+        return None
+    if not same:
+        return (f"{ckpt}: checkpoint of a different case (another case file or --parcels); remove it "
+                "to start the case afresh")
+    return None
 
 
 def _ended_unconverged(out):

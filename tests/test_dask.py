@@ -4,6 +4,7 @@ One LocalCluster of 2 worker processes (1 thread each) serves the module; its wo
 the super-batch driver once (numba cannot cache the parallel driver) and keep it.
 """
 
+import json
 import os
 import signal
 import subprocess
@@ -18,6 +19,8 @@ pytest.importorskip("dask.distributed")
 
 import particles  # noqa: E402
 from eulag import cli, sweep  # noqa: E402
+from eulag import coupling  # noqa: E402
+from eulag.config import Case  # noqa: E402
 from eulag.coupling import CouplingError, CouplingLoop, run  # noqa: E402
 from eulag.distributed import DaskConnectionError, DaskTracker, dask_client  # noqa: E402
 
@@ -172,6 +175,15 @@ def test_sweep_bad_input_exit_2_before_any_work(tmp_path, capsys):
     assert cli.main(["sweep", str(good), str(twin), "-o", str(out)]) == 2
     assert "also the name of" in capsys.readouterr().err
     assert not out.exists() or not any(out.iterdir())
+    # a checkpoint left by another case (here: another --parcels) is refused before any work
+    out.mkdir(exist_ok=True)
+    other = Case.from_toml(good).replace(numerics={"parcels": 1200})
+    meta = {"version": coupling.CHECKPOINT_VERSION, "case": other.to_attrs()}  # as CouplingLoop writes it
+    with open(out / "good.nc.checkpoint", "wb") as fh:
+        np.savez(fh, meta=np.frombuffer(json.dumps(meta, default=coupling._json_default).encode(), dtype=np.uint8))
+    assert cli.main(["sweep", str(good), "-o", str(out)]) == 2
+    assert "checkpoint of a different case" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["good.nc.checkpoint"]
 
 
 def test_dask_option_without_dask_is_bad_input(tmp_path, monkeypatch, capsys):
