@@ -337,3 +337,39 @@ def test_sweep_subprocess_killed_and_resumed(tmp_path):
     assert first.stat().st_mtime_ns == stamp
     rows = sweep.read_summary(out / "sweep_summary.csv")
     assert [r["status"] for r in rows] == ["finished earlier", "ran", "ran"]
+
+
+@pytest.mark.slow
+def test_sweep_worker_killed_during_a_case_resumes_it(tmp_path, client):
+    """A worker killed while it runs a case (after the case's first checkpoint): Dask runs the
+    case task again, it continues from the checkpoint and ends with the uninterrupted numbers."""
+    cases = [_write_case(tmp_path / f"c{i}.toml", f"wk_{i}", seed) for i, seed in enumerate((3, 4))]
+    out = tmp_path / "out"
+    entries = sweep.plan_sweep([str(c) for c in cases], out)
+    ckpt = out / "wk_0.nc.checkpoint"
+    import threading
+
+    killed = {}
+
+    def killer():
+        pids = _pids(client)
+        deadline = time.monotonic() + 120
+        while not ckpt.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        for w, keys in client.processing().items():
+            if any("eulag-case-wk_0" in k for k in keys):
+                os.kill(pids[w], signal.SIGKILL)
+                killed["worker"] = w
+                return
+
+    t = threading.Thread(target=killer)
+    t.start()
+    rows = sweep.run_sweep(entries, client, numba_threads=1)
+    t.join()
+    assert killed, "the worker running wk_0 was not killed"
+    assert [r["status"] for r in rows] == ["ran", "ran"]
+    import xarray as xr
+
+    with xr.open_dataset(out / "wk_0.nc") as ds:
+        data_vars_equal(run(small_case(**{"numerics.max_passes": 10})), ds.load())
+    client.wait_for_workers(2, timeout=60)
