@@ -340,23 +340,42 @@ def vertical_profiles(ds: xr.Dataset, x: float | None, path, reference=None) -> 
 # ---------------------------------------------------------------------------
 
 def convergence(ds: xr.Dataset, path) -> Path | None:
-    """Write the convergence history: coupling residual per pass (log scale), the gas-solver
-    residual history ``gas_residual`` and any ``pressure_gradient*`` variable over
-    ``iteration`` [Pa m-1], each in its own panel when present. Returns None (and writes
+    """Write the convergence history: coupling residual per pass (log scale, with the
+    tolerance), the gas-solver residual history ``gas_residual`` (periodic runs; developing
+    runs show the wall time per pass split into gas solve and Lagrangian pass instead) and
+    any ``pressure_gradient*`` variable over ``iteration`` [Pa m-1], each in its own panel
+    when present. Returns None (and writes
     nothing) if the dataset holds none of them."""
     panels = []
     if "residual" in ds and ds["residual"].size:
         panels.append(("residual", "coupling pass", "coupling residual [1]", True))
-    if "gas_residual" in ds and ds["gas_residual"].size:
+    # the march's residual history is a station-by-station concatenation: it says little as
+    # one curve, so a developing-pipe run with a coupling history shows time per pass instead
+    marching = ds.attrs.get("pipe.mode") == "developing" and "time_gas_solve_pass" in ds
+    if "gas_residual" in ds and ds["gas_residual"].size and not marching:
         panels.append(("gas_residual", "gas-solver iteration", "gas residual [1]", True))
     for name in ds.data_vars:
         if name.startswith("pressure_gradient") and ds[name].dims == ("iteration",):
             panels.append((name, "coupling pass", f"{name} [Pa m$^{{-1}}$]", False))
+    if marching:
+        panels.append(("time", "coupling pass", "wall time per pass [s]", False))
     if not panels:
         return None
     fig = _new_figure(4.6 * len(panels), 4.0)
     axes = np.atleast_1d(fig.subplots(1, len(panels)))
     for ax, (name, xlabel, ylabel, log) in zip(axes, panels):
+        if name == "time":
+            tg = np.asarray(ds["time_gas_solve_pass"].values, dtype=float)
+            tl = np.asarray(ds["time_lagrangian_pass"].values, dtype=float)
+            it = np.arange(1, tg.size + 1)
+            ax.bar(it, tg, label="gas solve")
+            ax.bar(it, tl, bottom=tg, label="Lagrangian pass")
+            ax.legend(fontsize="small")
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(ylabel)
+            ax.grid(True, axis="y", alpha=0.3)
+            continue
         v = np.asarray(ds[name].values, dtype=float)
         dim = ds[name].dims[0]
         it = np.asarray(ds[dim].values) if dim in ds.coords else np.arange(v.size)
@@ -364,6 +383,10 @@ def convergence(ds: xr.Dataset, path) -> Path | None:
         ax.plot(it, positive, "o-" if v.size < 50 else "-", ms=3)
         if log and np.any(v > 0):
             ax.set_yscale("log")
+        tol = ds.attrs.get("numerics.coupling_tolerance")
+        if name == "residual" and tol is not None:
+            ax.axhline(float(tol), color="0.4", ls="--", lw=1, label=f"tolerance {float(tol):g}")
+            ax.legend(fontsize="small")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
