@@ -80,10 +80,9 @@ def test_bad_arguments_exit_2_with_one_line(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == [case]
 
 
-@pytest.mark.parametrize("command", [["study", "scenes"], ["sweep", "a.toml"]])
-def test_unimplemented_commands_say_so(capsys, command):
-    status, out, err = run_cli(capsys, *command)
-    assert status == 1 and len(err.splitlines()) == 1 and "not available" in err
+def test_sweep_of_a_missing_case_is_bad_input(capsys, tmp_path):
+    status, out, err = run_cli(capsys, "sweep", str(tmp_path / "a.toml"), "-o", str(tmp_path / "out"))
+    assert status == 2 and len(err.splitlines()) == 1 and "a.toml" in err
 
 
 def test_single_phase_run_end_to_end(tmp_path, monkeypatch, capsys):
