@@ -59,6 +59,8 @@ def _build_parser() -> argparse.ArgumentParser:
                      help="continue from the checkpoint beside the output; succeed at once if the "
                           "output is already a finished run of the same case")
     run.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+    run.add_argument("--no-plots", action="store_true",
+                     help="gas-particle cases: do not write the figures (eulag plot) beside the dataset")
     _add_dask_arguments(run, "the Lagrangian passes' super-batches")
     run.set_defaults(func=cmd_run)
 
@@ -269,8 +271,18 @@ def _run_coupled(args, case: Case, out: Path, t_start: float) -> int:
     loop.timings["total"] = time.perf_counter() - t_start
     ds = coupled_dataset(loop)
     write_dataset(ds, out)
+    figures = []
+    if not args.no_plots:
+        from eulag import plots
+
+        try:
+            figures = plots.plot_all(out)
+        except Exception as exc:  # the dataset is written; a figure failing must not hide it
+            print(f"eulag: figures not written ({exc}); the dataset {out} is complete", file=sys.stderr)
     if not args.quiet:
         print(_coupled_summary(case, loop, ds, out))
+        if figures:
+            print(f"  figures      {Path(figures[0]).parent}/ ({len(figures)} PNG)")
     if not loop.converged:
         raise _Fail(f"the coupling did not converge in {len(loop.history.residual)} passes (final residual "
                     f"{loop.history.residual[-1]:.3g}); {out} was written with converged = false")
