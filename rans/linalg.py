@@ -66,15 +66,16 @@ class BlockStructure:
             return splu(self._sparse_matrix(diag, a_PN, a_NP))
         nr, nt = self.nr, self.nt
         D = np.zeros(nr * nt * nt)
-        D[self.diag_index] = diag
-        D[self.d_PN] = a_PN[self.f_same]
-        D[self.d_NP] = a_NP[self.f_same]
+        # np.add.at: entries of faces that share a cell pair add up, as in the sparse assembly
+        np.add.at(D, self.diag_index, diag)
+        np.add.at(D, self.d_PN, a_PN[self.f_same])
+        np.add.at(D, self.d_NP, a_NP[self.f_same])
         U = np.zeros(self.n)
         L = np.zeros(self.n)
-        U[self.u_out] = a_PN[self.f_out]
-        L[self.l_out] = a_NP[self.f_out]
-        L[self.l_in] = a_PN[self.f_in]
-        U[self.u_in] = a_NP[self.f_in]
+        np.add.at(U, self.u_out, a_PN[self.f_out])
+        np.add.at(L, self.l_out, a_NP[self.f_out])
+        np.add.at(L, self.l_in, a_PN[self.f_in])
+        np.add.at(U, self.u_in, a_NP[self.f_in])
         return BlockLU(D.reshape(nr, nt, nt), L.reshape(nr, nt), U.reshape(nr, nt))
 
 
