@@ -121,15 +121,9 @@ def _common(p, name: str) -> None:
 
 
 def _positive_int(text: str) -> int:
-    import argparse
+    from .cli import _positive_int as positive_int
 
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; allowed: an integer >= 1") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is out of range; allowed: an integer >= 1")
-    return value
+    return positive_int(text)
 
 
 def _with_parcels(case: Case, parcels: int | None) -> Case:
