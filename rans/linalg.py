@@ -44,6 +44,7 @@ class BlockStructure:
         self.ok = self.n == self.nr * self.nt and bool(np.all(same | out | inw)) and bool(
             np.all(kP[~same] == kN[~same]))
         self._sparse_matrix = sparse_matrix
+        self._P, self._N = P, N
         if not self.ok:
             return
         nt = self.nt
@@ -60,9 +61,15 @@ class BlockStructure:
         self.u_in = N[inw]
         self.diag_index = (np.arange(self.n) // nt * nt + np.arange(self.n) % nt) * nt + np.arange(self.n) % nt
 
+    def _dominant(self, diag, a_PN, a_NP):
+        return _row_dominant(diag, a_PN, a_NP, self._P, self._N)
+
     def factor(self, diag, a_PN, a_NP):
-        """LU of the matrix with diagonal ``diag`` and face coefficients; has ``.solve(b)``."""
-        if not self.ok:
+        """LU of the matrix with diagonal ``diag`` and face coefficients; has ``.solve(b)``.
+
+        Block LU does not pivot between blocks: a matrix that is not diagonally dominant
+        (e.g. central convection at cell Péclet numbers above 2) goes to SuperLU instead."""
+        if not self.ok or not self._dominant(diag, a_PN, a_NP):
             return splu(self._sparse_matrix(diag, a_PN, a_NP))
         nr, nt = self.nr, self.nt
         D = np.zeros(nr * nt * nt)
@@ -77,6 +84,13 @@ class BlockStructure:
         np.add.at(L, self.l_in, a_PN[self.f_in])
         np.add.at(U, self.u_in, a_NP[self.f_in])
         return BlockLU(D.reshape(nr, nt, nt), L.reshape(nr, nt), U.reshape(nr, nt))
+
+
+def _row_dominant(diag, a_PN, a_NP, P, N):
+    off = np.zeros(diag.size)
+    np.add.at(off, P, np.abs(a_PN))
+    np.add.at(off, N, np.abs(a_NP))
+    return bool(np.all(np.abs(diag) >= off * (1.0 - 1e-12)))
 
 
 class BlockLU:

@@ -52,3 +52,17 @@ def test_structure_that_is_not_block_tridiagonal_falls_back_to_sparse_lu():
     a = -np.ones(3)
     b = np.arange(6.0)
     np.testing.assert_allclose(bs.factor(diag, a, a).solve(b), splu(matrix(diag, a, a)).solve(b))
+
+
+def test_matrix_that_is_not_diagonally_dominant_goes_to_sparse_lu():
+    m = PipeMesh.build(0.0305, 1.0, "periodic", radial_cells=6, azimuthal_cells=12, bulk_velocity=10.0,
+                       density=1.205, viscosity=1.81e-5)
+    sec = m.geometry()
+    rng = np.random.default_rng(7)
+    flux = rng.normal(size=sec.P.size)  # strong convection, tiny diffusion: central is not dominant
+    diag, aPN, aNP = sec.transport(flux, sec.interp(np.full(sec.n, 1e-6)), "central")
+    diag = diag + 1e-3
+    lu = sec.factor(diag, aPN, aNP)
+    assert not hasattr(lu, "inv")  # SuperLU, not the block LU
+    b = rng.normal(size=sec.n)
+    np.testing.assert_allclose(sec.matrix(diag, aPN, aNP) @ lu.solve(b), b, atol=1e-8)
