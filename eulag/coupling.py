@@ -20,7 +20,8 @@ sqrt term), with a floor of 1 % of the RMS source for poorly sampled cells; the 
 pass is the RMS of these ratios over the cells and the momentum and k sources (≈ 1 once the
 changes are pure noise).  Converged when the residual is below ``numerics.coupling_tolerance``
 and, over the last three passes, the section-mean pressure gradient changed so little that
-the drift still to come of the relaxed iteration (change per pass × (1 − α)/α) is below 1 %
+the drift still to come of the relaxed iteration (least-squares change per pass over the last
+four values × (1 − α)/α) is below 1 %
 and the particle mass balance (in = out + stuck) closes within 1 %.  Then ``average_passes``
 final passes with ``numerics.parcels`` parcels give the reported statistics (their average);
 the earlier passes use ``numerics.parcels_start``.  One-way coupling solves the gas once and
@@ -370,9 +371,12 @@ class CouplingLoop:
         if len(h.residual) < _INTEGRAL_PASSES + 1 or not h.residual[-1] < n.coupling_tolerance:
             return False
         dp = np.asarray(h.pressure_gradient[-(_INTEGRAL_PASSES + 1):])
-        # a relaxed iteration still moving by d per pass has about d (1 - alpha)/alpha to go
+        # a relaxed iteration still moving by d per pass has about d (1 - alpha)/alpha to go;
+        # d is the least-squares trend over the last passes (the sampled sources make the
+        # pressure gradient scatter from pass to pass; the trend is what is still to come)
         alpha = h.relaxation[-1]
-        drift = np.max(np.abs(np.diff(dp))) * max(1.0, (1.0 - alpha) / alpha)
+        trend = np.polyfit(np.arange(dp.size, dtype=float), dp, 1)[0]
+        drift = abs(trend) * max(1.0, (1.0 - alpha) / alpha)
         if drift > _INTEGRAL_TOL * abs(dp[-1]):
             return False
         return max(h.mass_balance[-_INTEGRAL_PASSES:]) < _INTEGRAL_TOL
