@@ -316,11 +316,12 @@ class CouplingLoop:
         mom = np.stack([sample.momentum_source(c) for c in range(3)])
         sk = sample.k_source
         se_k = sample.k_source_stderr
+        eps_src = sample.epsilon_source(self.gas.k, self.gas.epsilon, self.case.physics.c_eps3)
         if self.case.physics.k_source_scaling == "seen-energy":
-            scale = self._seen_energy_scale(sample)
+            scale = self._seen_energy_scale(sample)  # S_eps is linear in S_k: same factor
             sk = sk * scale
             se_k = se_k * scale
-        eps_src = self.case.physics.c_eps3 * self.gas.epsilon / self.gas.k * sk
+            eps_src = eps_src * scale
         return {"momentum": mom, "k": sk, "epsilon": eps_src,
                 "se_momentum": np.stack([sample.momentum_source_stderr(c) for c in range(3)]),
                 "se_k": se_k}

@@ -89,8 +89,7 @@ def add_arguments(parser) -> None:
     p.set_defaults(func=_entry(study_tsuji_morikawa))
 
     p = sub.add_parser("scenes", help="the secondary-flow scene matrix a-h (cases/scenes/)")
-    _common(p, "scenes")
-    p.add_argument("--only", metavar="LIST", help="comma-separated scenes to run, e.g. a,c (default: all)")
+    _common(p, "scenes", only="comma-separated scenes to run, e.g. a,c (default: all)")
     p.set_defaults(func=_entry(study_scenes))
 
     p = sub.add_parser("error-runtime", help="error of the section profiles against wall time "
@@ -100,12 +99,13 @@ def add_arguments(parser) -> None:
     p.set_defaults(func=_entry(study_error_runtime))
 
     p = sub.add_parser("stability", help="stiff and extreme cases: converged, or a clear diagnosis")
-    _common(p, "stability")
-    p.add_argument("--only", metavar="LIST", help="comma-separated case names to run (default: all)")
+    _common(p, "stability", only="comma-separated case names to run (default: all)")
     p.set_defaults(func=_entry(study_stability))
 
 
-def _common(p, name: str) -> None:
+def _common(p, name: str, only: str | None = None) -> None:
+    if only is not None:
+        p.add_argument("--only", metavar="LIST", help=only)
     p.add_argument("--quick", action="store_true",
                    help="tiny grids, few parcels, two passes (checks the machinery; not results)")
     p.add_argument("-o", "--output-dir", metavar="DIR", default=None,
