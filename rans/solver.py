@@ -263,7 +263,7 @@ class _StationSolver:
         lu = sec.factor(diag_m, aPN, aNP)
 
         # axial velocity, mass flow fixed through the mean pressure gradient G = -dp/dx
-        b = ax * hist["ux"] + src["mx"] * A + relax_u * st.ux
+        b = ax * hist["ux"] + src["mx"] * A + relax_u * st.ux + sec.radial_gradient_correction(st.ux, mu_f)
         u1 = lu.solve(b)
         u2 = lu.solve(A.copy())
         mdot_target = self.Ub * self.area_total
@@ -275,8 +275,8 @@ class _StationSolver:
         fn = sec.interp_mid(src["fz"]) * sec.nz + sec.interp_mid(src["fy"]) * sec.ny
         un = (cwL * (st.uz[wall] * sec.wall_nz + st.uy[wall] * sec.wall_ny)
               - bwL * (st.uz[inner] * sec.wall_nz + st.uy[inner] * sec.wall_ny))
-        bz = ax * hist["uz"] + relax_u * st.uz
-        by = ax * hist["uy"] + relax_u * st.uy
+        bz = ax * hist["uz"] + relax_u * st.uz + sec.radial_gradient_correction(st.uz, mu_f)
+        by = ax * hist["uy"] + relax_u * st.uy + sec.radial_gradient_correction(st.uy, mu_f)
         # wall: shear acts on the tangential velocity only; the normal part of the implicit
         # wall stencil is given back explicitly
         bz[wall] += un * sec.wall_nz
