@@ -29,8 +29,6 @@ from .linalg import BlockStructure
 
 __all__ = ["Section"]
 
-CORRECTED_RADIUS = 1.0  # radial faces with r_f <= this * R get the quadratic gradient correction
-
 
 class Section:
     """Face lists, cell metrics and sparse-matrix assembly for one cross-section."""
@@ -137,11 +135,10 @@ class Section:
         self.Ry = (sp.diags(self.Tinv[:, 1]) @ self.fsum @ sp.diags(self.S * self.nz)
                    + sp.diags(self.Tinv[:, 2]) @ self.fsum @ sp.diags(self.S * self.ny)).tocsr()
 
-        # deferred correction of the radial-face gradient near the axis (see
-        # :meth:`radial_gradient_correction`): faces with r_f <= R/2, each with the quadratic
-        # through the centres of rings (j, j+1, j+2) on its ray
-        jc = np.arange(nr - 1)
-        jc = jc[(re[jc + 1] <= CORRECTED_RADIUS * re[-1]) & (jc + 2 <= nr - 2)]
+        # deferred correction of the radial-face gradient (see :meth:`radial_gradient_correction`):
+        # every radial face but the two next to the wall ring, each with the quadratic through
+        # the centres of rings (j, j+1, j+2) on its ray (never the wall ring)
+        jc = np.arange(max(nr - 3, 0))
         rows, cols, vals = [], [], []
         for j in jc:
             r0, r1, r2 = rc[j], rc[j + 1], rc[j + 2]
@@ -201,18 +198,25 @@ class Section:
         return diag, -cP, -cN
 
     def radial_gradient_correction(self, phi, gamma_f):
-        """Explicit (deferred-correction) source per cell [units of gamma_f * phi / m2 * m2]
-        that makes the diffusive flux through the radial faces near the axis second-order.
+        """Explicit (deferred-correction) source per cell [gamma_f * phi per m2, times the
+        area per unit length like the matrix rows] that makes the diffusive flux through the
+        radial faces second-order at the face.
 
         (phi_N - phi_P)/delta is the radial derivative at the midpoint between the two ring
         centres, not at the face; the offset is O(h) and, in the wedge ring at the axis (no
-        inner face to cancel it) and the rings just outside, it leaves an O(1) truncation
-        error, a max-norm order below 2 (issue 2's manufactured solution).  On the radial
-        faces with r_f <= R/2 the derivative is taken from the quadratic through three ring
-        centres on the ray; the difference from the two-point value, times gamma_f S_f, goes
-        to the right-hand side (lagged in the outer/station iterations, so the converged
-        solution is that of the corrected scheme).  The wall region, where wall functions set
-        the near-wall profile, keeps the two-point gradient.
+        inner face to cancel it) and the rings just outside, it left an O(1) truncation error
+        in the axisymmetric part of a field and a max-norm order of 1.74-1.84 in issue 2's
+        manufactured solution (1.87-2.14 with it).  On every radial face but the two next to
+        the wall ring the derivative is taken from the quadratic through three ring centres on
+        the ray; the difference from the two-point value, times gamma_f S_f, goes to the
+        right-hand side (lagged in the outer/station iterations, so the converged solution is
+        that of the corrected scheme).  The wall region, where wall functions set the near-wall
+        profile, keeps the two-point gradient; there the switch leaves ring nr-3 a first-order
+        (but local) truncation error.  Not corrected: the azimuthal faces of the wedge ring,
+        whose spacing is taken at the centroid (2/3 of the ring radius) -- exact for fields
+        linear in y and z, O(1) for the r^2 cos 2theta part of a field.  k and epsilon (upwind,
+        first order) do not use it: an explicit source of either sign would spoil the
+        positivity of their M-matrix solves.
         """
         if not self.corrected_faces.size:
             return np.zeros(self.n)
