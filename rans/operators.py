@@ -179,7 +179,8 @@ class Section:
         flux [kg m-1 s-1]: face mass flux per unit length from P to N; gamma_f [kg m-1 s-1]:
         face diffusivity.  Returns (diag, a_PN, a_NP) with the matrix acting as
         sum_f F_f (phi_f - phi_P) - D_f (phi_N - phi_P) over the faces of each cell.
-        scheme: "upwind", "central" or "hybrid" (central where the cell Peclet |F|/D < 2).
+        scheme: "upwind", "central" or "hybrid" (central where it keeps the coefficients
+        non-negative, |F| w < D for uniform spacing |F|/D < 2; upwind without diffusion beyond).
         """
         D = gamma_f * self.S / self.delta
         if scheme == "upwind":
@@ -189,9 +190,14 @@ class Section:
             cP = D - flux * self.w
             cN = D + flux * (1.0 - self.w)
             if scheme == "hybrid":
-                up = np.abs(flux) >= 2.0 * D
-                cP = np.where(up, D + np.maximum(-flux, 0.0), cP)
-                cN = np.where(up, D + np.maximum(flux, 0.0), cN)
+                # Spalding's hybrid in Patankar's (1980, §5.2) continuous form: central while it
+                # gives non-negative coefficients, pure upwind convection (no diffusion) beyond.
+                # (An earlier form kept D in the upwind branch; its coefficients jumped by D at
+                # the switch, and a face whose Peclet number sat at the switch flipped every
+                # outer iteration: a 2-cycle that kept stations from converging under strong
+                # particle sources, scene b.)
+                cP = np.maximum(np.maximum(-flux, cP), 0.0)
+                cN = np.maximum(np.maximum(flux, cN), 0.0)
             elif scheme != "central":
                 raise ValueError(f"scheme = {scheme!r}: allowed upwind, central, hybrid")
         diag = self._sum_P @ cP + self._sum_N @ cN

@@ -484,7 +484,7 @@ def solve(
     tol=1e-6,
     max_iterations=3000,
     station_tol=None,
-    station_iterations=(2, 60),
+    station_iterations=(2, 200),
     pseudo_step=None,
     initial=None,
     inlet_profile=None,
