@@ -537,7 +537,7 @@ class NumericsConfig(_Section):
         Azimuthal sectors, >= 8 and even, so the mesh is mirror-symmetric about the vertical
         diameter (default 40).
     first_cell_yplus : float
-        Target y+ of the wall-cell centroid [1], in (11.225, 500] (log-law region; default 30).
+        Target y+ of the wall-cell centroid [1], in (11.53, 500] (log-law region, above where u+ = y+ meets the log law; default 30).
     parcels : int
         Parcels per Lagrangian pass in the final passes, >= 1 (default 240000).
     parcels_start : int
@@ -584,7 +584,7 @@ class NumericsConfig(_Section):
     azimuthal_cells: int = _param(INTEGER, "azimuthal sectors, mirror-symmetric mesh",
                                   default=40, ge=8, even=True)
     first_cell_yplus: float = _param(NUMBER, "target y+ of the wall cell, log-law region",
-                                     default=30.0, gt=11.225, le=500.0)
+                                     default=30.0, gt=11.53, le=500.0)
     parcels: int = _param(INTEGER, "parcels per pass in the final passes", default=240000, ge=1)
     parcels_start: int | None = _param(INTEGER, "parcels per pass earlier, <= numerics.parcels",
                                        default=None, ge=1)

@@ -51,16 +51,8 @@ NT = 8  # fields stored per cell in the table
 NF = 11  # fields returned by ``interpolate``
 
 
-def viscous_edge_yplus(kappa=ke.KAPPA, e_wall=ke.E_WALL):
-    """y*_v where the sublayer profile u+ = y+ meets the log law u+ = ln(E y+)/κ [-] (≈ 11.53)."""
-    y = 11.0
-    for _ in range(50):  # Newton on f(y) = y - ln(E y)/kappa
-        f = y - math.log(e_wall * y) / kappa
-        y -= f / (1.0 - 1.0 / (kappa * y))
-    return y
-
-
-YSTAR_VISCOUS = viscous_edge_yplus()
+viscous_edge_yplus = ke.viscous_edge_yplus  # where u+ = y+ meets the log law (rans.kepsilon)
+YSTAR_VISCOUS = ke.YSTAR_LAMINAR
 
 
 @dataclass(frozen=True, eq=False)

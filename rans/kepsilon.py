@@ -6,6 +6,8 @@ Comput. Methods Appl. Mech. Eng. 3, 269-289 (constants, wall functions); see PHY
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 C_MU = 0.09  #: [-] eddy-viscosity constant
@@ -15,7 +17,23 @@ SIGMA_K = 1.0  #: [-] turbulent Prandtl number of k
 SIGMA_EPS = 1.3  #: [-] turbulent Prandtl number of epsilon
 KAPPA = 0.41  #: [-] von Karman constant
 E_WALL = 9.8  #: [-] log-law constant of a smooth wall, u+ = ln(E y+)/kappa
-YSTAR_LAMINAR = 11.225  #: [-] y* below which the wall cell is treated as viscous sublayer
+
+
+def viscous_edge_yplus(kappa=KAPPA, e_wall=E_WALL):
+    """y*_v where the sublayer profile u+ = y+ meets the log law u+ = ln(E y+)/kappa [-] (~11.53)."""
+    y = 11.0
+    for _ in range(50):  # Newton on f(y) = y - ln(E y)/kappa
+        f = y - math.log(e_wall * y) / kappa
+        y -= f / (1.0 - 1.0 / (kappa * y))
+    return y
+
+
+#: [-] y* below which the wall cell is treated as viscous sublayer: where the two laws meet,
+#: 11.53 for kappa = 0.41, E = 9.8, so that the wall shear coefficient is continuous in k_P.
+#: (PHYSICS.md 6.2 gives 11.225, the crossing for kappa = 0.4187, E = 9.793; with this model's
+#: constants it left a 2 % jump in tau_w, and a wall cell whose y* sat at the switch cycled
+#: between the two laws -- a gas station of scene e never converged.)
+YSTAR_LAMINAR = viscous_edge_yplus()
 
 
 def inlet_epsilon(k, diameter, length_scale_fraction=0.07):

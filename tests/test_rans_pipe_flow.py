@@ -153,3 +153,20 @@ def test_non_finite_source_is_rejected_before_solving():
     s.momentum[0, 0, 3, 5] = np.nan
     with pytest.raises(ValueError, match=r"momentum source .* not finite .* ring 3, sector 5"):
         solve(m, GAS, U, sources=s)
+
+
+def test_wall_shear_coefficient_is_continuous_at_the_sublayer_switch():
+    """The viscous law and the log law meet at y* = 11.53 (kappa 0.41, E 9.8): no jump in tau_w
+    when k_P moves the wall cell across the switch (a 2 % jump at PHYSICS.md's 11.225 made a
+    wall cell cycle between the two laws and a gas station never converge)."""
+    from rans import kepsilon as ke
+
+    y_p = 1e-3
+    ystar = ke.YSTAR_LAMINAR * np.array([1 - 1e-7, 1 + 1e-7])
+    k = (ystar * MU / (RHO * y_p)) ** 2 / math.sqrt(ke.C_MU)
+    c, ys = ke.wall_shear_coefficient(k, y_p, RHO, MU)
+    assert ys == pytest.approx(ystar, rel=1e-9)
+    assert c[1] == pytest.approx(c[0], rel=1e-6)
+    # the edge is where u+ = y+ meets the log law, independently: y = ln(E y)/kappa
+    assert ke.YSTAR_LAMINAR == pytest.approx(math.log(ke.E_WALL * ke.YSTAR_LAMINAR) / ke.KAPPA, rel=1e-12)
+    assert 11.5 < ke.YSTAR_LAMINAR < 11.56
