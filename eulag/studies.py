@@ -1242,7 +1242,7 @@ def stability_cases(quick: bool, parcels: int | None = None) -> list[tuple[str, 
     # leaves is in the batch standard errors and the coupling residual's noise units.
     tracer_parcels = n.parcels if quick else max(1000, n.parcels_start // 15)
     specs = [
-        ("tracers_1um", f"D_p = 1 µm (tracers), {tracer_parcels} parcels per pass (each takes ~10^5 "
+        ("tracers_1um", f"D_p = 1 µm (tracers), {tracer_parcels} parcels per pass (each takes ~7.5·10^4 "
                         "collision-limited steps)",
          {"particles": {"diameter": 1e-6},
           "numerics": {"parcels": tracer_parcels, "parcels_start": min(n.parcels_start, tracer_parcels)}}),

@@ -40,7 +40,7 @@ from rans import kepsilon as ke
 from rans.mesh import cell_index
 
 __all__ = ["FieldTable", "interpolate", "NF", "F_UX", "F_UY", "F_UZ", "F_K", "F_EPS",
-           "F_WX", "F_WY", "F_WZ", "F_DKX", "F_DKY", "F_DKZ", "NT", "viscous_edge_yplus"]
+           "F_WX", "F_WY", "F_WZ", "F_DKX", "F_DKY", "F_DKZ", "NT"]
 
 # field indices of the table (last axis)
 F_UX, F_UY, F_UZ = 0, 1, 2  # mean gas velocity [m s-1]
@@ -51,8 +51,7 @@ NT = 8  # fields stored per cell in the table
 NF = 11  # fields returned by ``interpolate``
 
 
-viscous_edge_yplus = ke.viscous_edge_yplus  # where u+ = y+ meets the log law (rans.kepsilon)
-YSTAR_VISCOUS = ke.YSTAR_LAMINAR
+YSTAR_VISCOUS = ke.YSTAR_LAMINAR  # where u+ = y+ meets the log law (rans.kepsilon), ~11.53
 
 
 @dataclass(frozen=True, eq=False)

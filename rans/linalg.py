@@ -87,9 +87,7 @@ class BlockStructure:
 
 
 def _row_dominant(diag, a_PN, a_NP, P, N):
-    off = np.zeros(diag.size)
-    np.add.at(off, P, np.abs(a_PN))
-    np.add.at(off, N, np.abs(a_NP))
+    off = np.bincount(P, np.abs(a_PN), minlength=diag.size) + np.bincount(N, np.abs(a_NP), minlength=diag.size)
     return bool(np.all(np.abs(diag) >= off * (1.0 - 1e-12)))
 
 

@@ -153,14 +153,12 @@ class Section:
                 rows.append(j * nt + np.arange(nt))
                 cols.append(idx[j + m, :])
                 vals.append(np.full(nt, cm))
-        self.corrected_faces = np.arange(jc.size * nt) if jc.size else np.zeros(0, dtype=np.int64)
+        self.corrected_faces = np.arange(jc.size * nt)  # radial faces come first, ring by ring
         nfc = self.corrected_faces.size
-        if nfc:
-            self._corr = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                                       shape=(nfc, n))
-        else:
-            self._corr = sp.csr_matrix((0, n))
-        self._corr_div = self.div[:, :nfc] if nfc else sp.csr_matrix((n, 0))
+        cat = (lambda a: np.concatenate(a)) if nfc else (lambda a: np.zeros(0))
+        self._corr = sp.csr_matrix((cat(vals), (cat(rows).astype(np.int64), cat(cols).astype(np.int64))),
+                                   shape=(nfc, n))
+        self._corr_div = self.div[:, :nfc]
 
     # ------------------------------------------------------------------ matrices
     def matrix(self, diag, a_PN, a_NP):
@@ -224,8 +222,6 @@ class Section:
         first order) do not use it: an explicit source of either sign would spoil the
         positivity of their M-matrix solves.
         """
-        if not self.corrected_faces.size:
-            return np.zeros(self.n)
         f = self.corrected_faces
         q = gamma_f[f] * self.S[f] * (self._corr @ phi)
         return self._corr_div @ q
