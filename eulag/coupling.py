@@ -10,8 +10,20 @@ Cycle (the reference paper's):
 1. the gas without particles, converged (single-phase reference: k₀, −dp/dx₀);
 2. a first Lagrangian pass without inter-particle collisions (no cell statistics yet);
 3. then alternately: gas solve with the relaxed sources S_used = (1 − α) S_used + α S_pass
-   (α = ``numerics.relaxation``; halved automatically, down to 0.05, if a gas solve fails),
-   and a Lagrangian pass in the new gas field with the cell statistics of the previous pass.
+   (α = ``numerics.relaxation``; halved automatically, down to 0.05, if a gas solve fails or
+   if the residual stagnates above the tolerance, see below), and a Lagrangian pass in the new
+   gas field with the cell statistics of the earlier passes.  The cell statistics the
+   inter-particle collisions use (number density, velocity moments, collision frequency) are
+   relaxed with the same α: statistics taken from one pass alone feed back with a negative
+   gain (dense cell → many collisions → the particles spread → few collisions next pass …),
+   which for 50 µm particles at η = 2.2 made the loop oscillate between two states.
+
+Stagnation: when the residual has stayed above the tolerance for ``2 W`` passes (W = 4) since
+the start or the last change of α, and the best residual of the last W passes is not at least
+10 % below the best of the W before, α is halved (not below 0.05).  The halving lowers the
+pass-to-pass noise the lagged fields carry into the next pass (it is what kept the residual of
+such cases at about 2) and damps an oscillating mode; each change is in the history
+(``relaxation``) and in the progress line.
 
 Convergence ("no longer changing beyond noise"): per cell the change of the relaxed sources,
 ΔS = α (S_pass − S_used_prev), is compared with its own statistical noise
@@ -50,8 +62,10 @@ from collisions import InterparticleOptions, WallOptions
 __all__ = ["CouplingLoop", "PassState", "CouplingError", "run", "physics_options", "particle_spec",
            "build_mesh", "CHECKPOINT_VERSION"]
 
-CHECKPOINT_VERSION = 2
+CHECKPOINT_VERSION = 3
 MIN_RELAXATION = 0.05
+_STAGNATION_WINDOW = 4  # passes (W in the module docstring)
+_STAGNATION_GAIN = 0.9  # the best residual must fall below this fraction of the previous best
 _FLOOR = 0.01  # noise floor of the residual, as a fraction of the RMS source
 _INTEGRAL_TOL = 0.01  # pressure gradient and mass balance, relative
 _INTEGRAL_PASSES = 3
@@ -134,6 +148,7 @@ class _History:
     time_gas: list = field(default_factory=list)
     time_particles: list = field(default_factory=list)
     floored: list = field(default_factory=list)
+    gas_relaxation: list = field(default_factory=list)  # implicit k-eps relaxation the gas solve needed
 
     def arrays(self):
         return {k: np.asarray(v, dtype=np.float64) for k, v in self.__dict__.items()}
@@ -170,6 +185,7 @@ class CouplingLoop:
         self.physics = physics_options(case)
         self.settings = track_settings(case)
         self.alpha = case.numerics.relaxation
+        self.alpha_changed_at = 0  # pass after which alpha was last changed (stagnation rule)
         self.two_way = case.physics.coupling != "one-way"
         self.history = _History()
         self.timings = {"gas_solve": 0.0, "lagrangian": 0.0, "checkpoint": 0.0, "compile": 0.0}
@@ -196,6 +212,8 @@ class CouplingLoop:
     _GAS_RELAXATION = ((1.0, 1.0), (0.7, 1.0), (0.5, 0.7))
 
     def _solve_gas(self, sources):
+        """The gas field with ``sources`` (None: single phase), its wall time and the implicit
+        k-ε relaxation it needed (1 unless a first attempt diverged)."""
         n = self.case.numerics
         g = self.case.gas
         initial = self.gas if self.mesh.mode == "periodic" else None
@@ -210,6 +228,7 @@ class CouplingLoop:
                                         max_iterations=cap, initial=initial,
                                         turbulence_relaxation=tr, momentum_relaxation=mr,
                                         require_convergence=not inner)
+                    used = tr
                     break
                 except rans.SolverDivergence:
                     if attempt + 1 == len(self._GAS_RELAXATION):
@@ -217,7 +236,7 @@ class CouplingLoop:
         finally:
             dt = time.perf_counter() - t0
             self.timings["gas_solve"] += dt
-        return field_, dt
+        return field_, dt, used
 
     def _gas_sources(self, s):
         return rans.Sources(momentum=s["momentum"], k=s["k"], epsilon=s["epsilon"],
@@ -234,7 +253,7 @@ class CouplingLoop:
             raise StopIteration
         n = self.case.numerics
         if self.gas0 is None:
-            self.gas0, _ = self._solve_gas(None)
+            self.gas0, _, _ = self._solve_gas(None)
             if not self.gas0.converged:
                 raise CouplingError("single-phase gas solve did not converge")
             self.gas = self.gas0
@@ -255,23 +274,30 @@ class CouplingLoop:
         if counts["lost"]:
             raise CouplingError(f"pass {m}: {counts['lost']} parcels lost (non-finite state or left "
                                 "the pipe through a wall); the tracker must never lose parcels")
+        if self.two_way and self.phase == "early":
+            self._check_stagnation()
         if self.physics.inter_particle_collisions:
-            self.stats = sample.cell_statistics(self.gas, min_visits=self.settings.min_visits)
+            new_stats = sample.cell_statistics(self.gas, min_visits=self.settings.min_visits)
+            self.stats = (new_stats if self.stats is None or not self.two_way
+                          else _relax_statistics(self.stats, new_stats, self.alpha))
         computed = self._computed_sources(sample)
         residual = math.nan
         t_gas = 0.0
+        gas_relax = 1.0
         if self.two_way:
             alpha = self.alpha
             while True:
                 relaxed, residual = self._relax(computed, sample, alpha)
                 try:
-                    gas, t_gas = self._solve_gas(self._gas_sources(relaxed))
+                    gas, t_gas, gas_relax = self._solve_gas(self._gas_sources(relaxed))
                     break
                 except rans.SolverDivergence as err:
                     if alpha / 2 < MIN_RELAXATION:
                         raise CouplingError(f"pass {m}: gas solve with the particle sources failed even "
                                             f"with relaxation {alpha:g}: {err}") from None
                     alpha = max(MIN_RELAXATION, alpha / 2)
+            if alpha != self.alpha:
+                self.alpha_changed_at = m - 1
             self.alpha = alpha
             self.sources = relaxed
             self.gas = gas
@@ -290,6 +316,7 @@ class CouplingLoop:
         h.time_particles.append(t_part)
         fl = self.gas.floored
         h.floored.append(int(np.sum(fl)) if fl is not None else 0)
+        h.gas_relaxation.append(gas_relax)
         self.last_sample = sample
         if self.phase == "final":
             self._add_to_window(sample)
@@ -311,6 +338,19 @@ class CouplingLoop:
         if self.progress is not None:
             self.progress(state)
         return state
+
+    def _check_stagnation(self):
+        """Halve α when the residual has stopped falling (module docstring, "Stagnation")."""
+        w = _STAGNATION_WINDOW
+        r = np.asarray(self.history.residual[self.alpha_changed_at:], dtype=float)
+        r = r[np.isfinite(r)]
+        if r.size < 2 * w or self.alpha <= MIN_RELAXATION:
+            return
+        tol = self.case.numerics.coupling_tolerance
+        last, before = r[-w:], r[-2 * w:-w]
+        if np.all(last >= tol) and last.min() > _STAGNATION_GAIN * before.min():
+            self.alpha = max(MIN_RELAXATION, self.alpha / 2)
+            self.alpha_changed_at = self.pass_index - 1
 
     def _computed_sources(self, sample):
         mom = np.stack([sample.momentum_source(c) for c in range(3)])
@@ -432,7 +472,8 @@ class CouplingLoop:
             arrays[f"hist_{k}"] = v
         meta = {"version": CHECKPOINT_VERSION, "case": self.case.to_attrs(), "pass_index": self.pass_index,
                 "phase": self.phase, "final_left": self.final_left, "converged": self.converged,
-                "finished": self.finished, "alpha": self.alpha, "window_n": self.window_n,
+                "finished": self.finished, "alpha": self.alpha, "alpha_changed_at": self.alpha_changed_at,
+                "window_n": self.window_n,
                 "window_batches": self.window_batches, "window_parcels": self.window_parcels,
                 "timings": self.timings}
         arrays["meta"] = np.frombuffer(json.dumps(meta, default=_json_default).encode(), dtype=np.uint8)
@@ -465,7 +506,8 @@ class CouplingLoop:
         self.history.lost = [int(v) for v in self.history.lost]
         self.history.stuck = [int(v) for v in self.history.stuck]
         self.history.floored = [int(v) for v in self.history.floored]
-        for k in ("pass_index", "phase", "final_left", "converged", "finished", "alpha", "window_n",
+        for k in ("pass_index", "phase", "final_left", "converged", "finished", "alpha",
+                  "alpha_changed_at", "window_n",
                   "window_batches", "window_parcels"):
             setattr(self, k, meta[k])
         self.timings.update(meta["timings"])
@@ -475,6 +517,23 @@ class CouplingLoop:
         return rans.GasField(mesh=self.mesh, gas=self.gas_props, bulk_velocity=self.case.gas.bulk_velocity,
                              converged=bool(data[f"{tag}_converged"]),
                              face_flux=data.get(f"{tag}_face_flux"), **kw)
+
+
+def _relax_statistics(old, new, alpha):
+    """Collision statistics blended like the sources: (1 − α) old + α new per cell, the rms
+    columns through their variances; a cell sampled in only one of them keeps that one's row.
+    The collision frequency is blended linearly (it is close to linear in n and σ)."""
+    from particles.layout import CS_OK, CS_RMS, CS_WRMS
+
+    both = (old[:, CS_OK] > 0) & (new[:, CS_OK] > 0)
+    out = np.where((new[:, CS_OK] > 0)[:, None], new, old)
+    blend = (1.0 - alpha) * old[both] + alpha * new[both]
+    for c0 in (CS_RMS, CS_WRMS):
+        sl = slice(c0, c0 + 3)
+        blend[:, sl] = np.sqrt((1.0 - alpha) * old[both, sl] ** 2 + alpha * new[both, sl] ** 2)
+    blend[:, CS_OK] = 1.0
+    out[both] = blend
+    return out
 
 
 def _json_default(v):

@@ -128,3 +128,45 @@ def PipeMesh_from(case):
     from eulag.coupling import build_mesh
 
     return build_mesh(case)
+
+
+def test_collision_statistics_are_relaxed_like_the_sources():
+    from eulag.coupling import _relax_statistics
+    from particles.layout import CS_N, CS_OK, CS_RMS, CS_U, NCS
+
+    old = np.zeros((3, NCS))
+    new = np.zeros((3, NCS))
+    old[:, CS_OK] = [1, 1, 0]
+    new[:, CS_OK] = [1, 0, 1]
+    old[:, CS_N], new[:, CS_N] = [1e9, 2e9, 0], [3e9, 0, 5e9]
+    old[:, CS_U], new[:, CS_U] = [10.0, 9.0, 0], [12.0, 0, 8.0]
+    old[:, CS_RMS], new[:, CS_RMS] = [0.3, 0.2, 0], [0.4, 0, 0.5]
+    out = _relax_statistics(old, new, 0.25)
+    # sampled in both: the 0.75/0.25 blend, rms through the variances
+    assert out[0, CS_N] == pytest.approx(0.75e9 + 0.75e9)
+    assert out[0, CS_U] == pytest.approx(0.75 * 10 + 0.25 * 12)
+    assert out[0, CS_RMS] == pytest.approx(np.sqrt(0.75 * 0.09 + 0.25 * 0.16))
+    # sampled once: that sample's row, flagged usable
+    np.testing.assert_array_equal(out[1], old[1])
+    np.testing.assert_array_equal(out[2], new[2])
+    assert np.all(out[:, CS_OK] == 1)
+
+
+@pytest.mark.parametrize("residuals, halved", [
+    ([3.0, 2.6, 2.4, 2.5, 2.3, 2.4, 2.5, 2.2], True),     # stuck near 2.2-2.6: halve
+    ([3.0, 2.6, 2.4, 2.5, 2.0, 1.9, 1.8, 1.7], False),    # still falling by > 10 %
+    ([3.0, 2.6, 2.4, 2.5, 2.3, 1.2, 2.5, 2.2], False),    # once below the tolerance 1.5
+    ([3.0, 2.6, 2.4, 2.5, 2.3, 2.4, 2.5], False),         # too few passes to judge
+])
+def test_relaxation_is_halved_when_the_residual_stagnates(residuals, halved):
+    loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5}))
+    loop.history.residual = [float("nan")] + residuals
+    loop.pass_index = len(loop.history.residual) + 1
+    loop._check_stagnation()
+    assert loop.alpha == (0.15 if halved else 0.3)
+    if halved:
+        # the next judgement waits for 2 W passes at the new relaxation
+        loop.history.residual += [2.3]
+        loop.pass_index += 1
+        loop._check_stagnation()
+        assert loop.alpha == 0.15
