@@ -585,7 +585,8 @@ def _settings_text(cases: list[Case], quick: bool) -> str:
             f"{n.axial_cells} axial x {n.radial_cells} radial x {n.azimuthal_cells} azimuthal cells, "
             f"{n.parcels} parcels per pass in the final passes ({n.parcels_start} earlier), "
             f"{n.average_passes} final passes averaged, at most {n.max_passes} passes, relaxation "
-            f"{n.relaxation:g} (halved by the loop when a gas solve fails or the residual stagnates), step rule {n.step_rule} x "
+            f"{n.relaxation:g} (halved by the loop when a gas solve fails or the residual stagnates), "
+            f"step rule {n.step_rule} x "
             f"{n.step_factor:g}, coupling tolerance {n.coupling_tolerance:g}, seed {n.seed}. "
             "Model constants are the paper's (PHYSICS.md §12); nothing is tuned to the measurements.")
     if quick:
@@ -1373,7 +1374,8 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
         "Columns: converged (yes / no = finished at max_passes / failed = the coupling loop stopped "
         "with a diagnosis / rejected = the case validation refused it); final coupling residual; the "
         "source under-relaxation the loop chose (final and smallest; the loop halves it, down to "
-        "0.05, when a gas solve with the sources fails or the residual stagnates above the tolerance); parcels stopped by the residence-time cap "
+        "0.05, when a gas solve with the sources fails or the residual stagnates above the tolerance); "
+        "parcels stopped by the residence-time cap "
         "(all passes, and in the averaged final passes); lost parcels (must be 0); the share of "
         "particle steps spent sliding or rolling on the wall (final passes; near saltation this is "
         "the bottom layer); gas fields with a non-finite value; the smallest k and epsilon; the first "
