@@ -17,6 +17,9 @@ Cycle (the reference paper's):
    relaxed with the same α: statistics taken from one pass alone feed back with a negative
    gain (dense cell → many collisions → the particles spread → few collisions next pass …),
    which for 50 µm particles at η = 2.2 made the loop oscillate between two states.
+   What is relaxed are the momentum source and S_k (its sinks as the rate S_k/k, below); the
+   dissipation source C_ε3 (ε/k) S_k is formed inside the gas solve from the relaxed S_k and
+   the iterate's ε/k (``rans.Sources.c_eps3``), so that it follows the turbulence it acts on.
 
 Stagnation: when the residual has stayed above the tolerance for ``2 W`` passes (W = 4) since
 the start or the last change of α, and the best residual of the last W passes is not at least
@@ -196,7 +199,9 @@ class CouplingLoop:
         self.finished = False
         self.gas = None
         self.gas0 = None
-        self.sources = None  # relaxed, as used: dict momentum (3,...), k, epsilon, k_ref, eps_ref
+        # relaxed, as used: dict momentum (3,...), k, k_ref, eps_ref (the gas the sinks were
+        # referred to) and epsilon (C_eps3 (eps/k) S_k as applied in the last gas solve: output only)
+        self.sources = None
         self.stats = None
         self.window = None  # running sums (total, var, cov) of the final passes' samples
         self.window_n = 0
@@ -228,7 +233,8 @@ class CouplingLoop:
                                         max_iterations=cap, initial=initial,
                                         turbulence_relaxation=tr, momentum_relaxation=mr,
                                         require_convergence=not inner)
-                    used = tr
+                    sr = field_.station_relaxation
+                    used = min(tr, float(np.min(sr))) if sr is not None else tr
                     break
                 except rans.SolverDivergence:
                     if attempt + 1 == len(self._GAS_RELAXATION):
@@ -239,8 +245,10 @@ class CouplingLoop:
         return field_, dt, used
 
     def _gas_sources(self, s):
-        return rans.Sources(momentum=s["momentum"], k=s["k"], epsilon=s["epsilon"],
-                            k_reference=s["k_ref"], epsilon_reference=s["eps_ref"])
+        # S_eps = C_eps3 (eps/k) S_k is evaluated in the solve with the iterate's eps/k
+        # (rans.Sources): only S_k is relaxed, so S_eps always follows the present turbulence
+        return rans.Sources(momentum=s["momentum"], k=s["k"], epsilon=np.zeros_like(s["k"]),
+                            k_reference=s["k_ref"], c_eps3=self.case.physics.c_eps3)
 
     # ------------------------------------------------------------------ iteration
     def __iter__(self):
@@ -299,6 +307,7 @@ class CouplingLoop:
             if alpha != self.alpha:
                 self.alpha_changed_at = m - 1
             self.alpha = alpha
+            relaxed["epsilon"] = self._gas_sources(relaxed).applied_epsilon(gas.k, gas.epsilon)
             self.sources = relaxed
             self.gas = gas
         b = sample.budget
@@ -356,13 +365,11 @@ class CouplingLoop:
         mom = np.stack([sample.momentum_source(c) for c in range(3)])
         sk = sample.k_source
         se_k = sample.k_source_stderr
-        eps_src = sample.epsilon_source(self.gas.k, self.gas.epsilon, self.case.physics.c_eps3)
         if self.case.physics.k_source_scaling == "seen-energy":
-            scale = self._seen_energy_scale(sample)  # S_eps is linear in S_k: same factor
+            scale = self._seen_energy_scale(sample)
             sk = sk * scale
             se_k = se_k * scale
-            eps_src = eps_src * scale
-        return {"momentum": mom, "k": sk, "epsilon": eps_src,
+        return {"momentum": mom, "k": sk,
                 "se_momentum": np.stack([sample.momentum_source_stderr(c) for c in range(3)]),
                 "se_k": se_k}
 
@@ -378,17 +385,15 @@ class CouplingLoop:
         prev = self.sources
         shape = self.mesh.shape
         if prev is None:
-            prev = {"momentum": np.zeros((3,) + shape), "k": np.zeros(shape), "epsilon": np.zeros(shape)}
+            prev = {"momentum": np.zeros((3,) + shape), "k": np.zeros(shape)}
         else:
-            # the sinks of k and eps are used as linear sinks, S k/k_ref (rans.Sources): what is
+            # the sinks of k are used as linear sinks, S k/k_ref (rans.Sources): what is
             # relaxed is their rate S/k_ref, so the previous sinks are carried over to the
             # present reference field before they are blended with this pass's
             prev = dict(prev)
-            for key, ref, now in (("k", "k_ref", self.gas.k), ("epsilon", "eps_ref", self.gas.epsilon)):
-                prev[key] = np.where(prev[key] < 0.0, prev[key] * (now / prev[ref]), prev[key])
+            prev["k"] = np.where(prev["k"] < 0.0, prev["k"] * (self.gas.k / prev["k_ref"]), prev["k"])
         new = {"momentum": (1 - alpha) * prev["momentum"] + alpha * comp["momentum"],
                "k": (1 - alpha) * prev["k"] + alpha * comp["k"],
-               "epsilon": (1 - alpha) * prev["epsilon"] + alpha * comp["epsilon"],
                "k_ref": self.gas.k.copy(), "eps_ref": self.gas.epsilon.copy()}
         residual = math.nan
         if self.sources is not None:

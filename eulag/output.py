@@ -272,7 +272,8 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
          "units": "1"})
     ds["gas_turbulence_relaxation"] = _var(
         it, h["gas_relaxation"], "1",
-        "implicit k-epsilon under-relaxation the pass's gas solve needed (1: first attempt converged)")
+        "smallest implicit k-epsilon under-relaxation a station of the pass's gas solve needed "
+        "(1: every station converged at the first attempt)")
     ds["pressure_gradient_history"] = _var(it, h["pressure_gradient"], "Pa m-1",
                                            "pipe-mean -dp/dx after the pass's gas solve")
     ds["time_gas_solve_pass"] = _var(it, h["time_gas"], "s", "wall-clock time of the pass's gas solve")

@@ -71,6 +71,15 @@ class Sources:
     S_k k/k_reference and S_eps eps/epsilon_reference, which can never drive k or epsilon
     through zero.  Without references they are linearised about the current iterate
     (Patankar), and a sink larger than the flow can sustain stops the solve with a diagnosis.
+
+    c_eps3 (optional): the particle dissipation source is the closure C_eps3 (eps/k) S_k
+    (PHYSICS.md 5.1), evaluated in the solve with the iterate's eps/k, as C_eps1 (eps/k) P_k
+    is: the sink part of S_k (rate -S_k/k_reference) gives the linear eps sink of rate
+    C_eps3 (-S_k)/k_reference, a positive S_k the explicit source C_eps3 (eps/k) S_k.  It adds
+    to ``epsilon`` (then normally zero).  A source sampled in an earlier pass's eps/k and carried
+    through the under-relaxation would not follow eps when the turbulence collapses: near the
+    inlet eps/k is ~10^4 times its value downstream of a strong particle sink, and a positive
+    S_eps kept from there drove eps to overflow in the axis cell (scenes g, h at 4 eta0).
     """
 
     momentum: np.ndarray
@@ -78,11 +87,26 @@ class Sources:
     epsilon: np.ndarray
     k_reference: np.ndarray = None
     epsilon_reference: np.ndarray = None
+    c_eps3: float | None = None
 
     @classmethod
     def zeros(cls, mesh):
         s = mesh.shape
         return cls(np.zeros((3,) + s), np.zeros(s), np.zeros(s))
+
+    def applied_epsilon(self, k, epsilon):
+        """The dissipation source [W m-3 s-1] the solve applies in the gas field (k, epsilon):
+        ``epsilon`` (sinks scaled by epsilon/epsilon_reference) plus, with c_eps3, C_eps3 (eps/k)
+        times S_k as applied (sinks scaled by k/k_reference)."""
+        out = self.epsilon.copy()
+        if self.epsilon_reference is not None:
+            out = np.where(out < 0.0, out * epsilon / self.epsilon_reference, out)
+        if self.c_eps3 is not None:
+            sk = self.k
+            if self.k_reference is not None:
+                sk = np.where(sk < 0.0, sk * k / self.k_reference, sk)
+            out = out + self.c_eps3 * epsilon / k * sk
+        return out
 
 
 @dataclass
@@ -95,7 +119,10 @@ class GasField:
     residuals: solver residual history (max normalised change per outer iteration);
     station_iterations (nx,) outer iterations used per station; production_limited (nx,) cells
     per station where the optional production limiter acted in the last iteration; floored
-    (nx,) cells per station held at the k/epsilon floors in the last iteration.
+    (nx,) cells per station held at the k/epsilon floors in the last iteration;
+    station_relaxation (nx,) the smaller of the implicit k-epsilon and momentum relaxations
+    each station was iterated with (below the one asked for where a diverging station was
+    retried, see _march_station).
     """
 
     mesh: PipeMesh
@@ -116,6 +143,7 @@ class GasField:
     face_flux: np.ndarray = field(default=None, repr=False)
     production_limited: np.ndarray = field(default=None, repr=False)
     floored: np.ndarray = field(default=None, repr=False)
+    station_relaxation: np.ndarray = field(default=None, repr=False)
 
     @property
     def nut(self):
@@ -158,6 +186,11 @@ _VARS = ("ux", "uy", "uz", "k", "eps")
 
 
 PRODUCTION_LIMIT = 10.0  # optional limiter: P_k <= PRODUCTION_LIMIT * rho * eps (solve(production_limit=...))
+#: implicit k-eps relaxations a diverging station of the march is retried with (_march_station)
+#: and momentum relaxations.  The first keeps the discrete fixed point exactly; with momentum
+#: relaxation the momentum-interpolation weights of the SIMPLEC step change with it, so the
+#: cross flow of such a station differs at the level of that smoothing term (tests).
+STATION_RELAXATION = ((0.5, 1.0), (0.5, 0.7), (0.2, 0.5), (0.05, 0.3))
 K_FLOOR = 1e-10  # k >= K_FLOOR U_b^2 and eps >= C_mu k_floor^(3/2) / D after every solve (PHYSICS.md 6.4)
 
 
@@ -343,6 +376,10 @@ class _StationSolver:
             de, ePN, eNP = sec.transport(flux, ge, "upwind")
             de = de + hist.get("c0_eps", c0) * ax + ke.C_EPS2 * rho * A * st.eps / st.k + A * np.maximum(-Se, 0.0) / eref
             be = ax * hist["eps"] + A * (ke.C_EPS1 * st.eps / st.k * Pk + np.maximum(Se, 0.0))
+            c3 = src["c_eps3"]
+            if c3 is not None:  # S_eps = C_eps3 (eps/k) S_k with the iterate's eps/k (Sources)
+                de = de + c3 * A * np.maximum(-Sk, 0.0) / kref
+                be = be + c3 * A * st.eps / st.k * np.maximum(Sk, 0.0)
             if relax_turb < 1.0:
                 be += (1.0 - relax_turb) / relax_turb * de * st.eps
                 de = de / relax_turb
@@ -447,7 +484,7 @@ class _StationSolver:
 def _source_slices(sources, i, n):
     if sources is None:
         z = np.zeros(n)
-        return {"mx": z, "fy": z, "fz": z, "k": z, "eps": z, "k_ref": None, "eps_ref": None}
+        return {"mx": z, "fy": z, "fz": z, "k": z, "eps": z, "k_ref": None, "eps_ref": None, "c_eps3": None}
     m = sources.momentum
     return {
         "mx": m[0, i].ravel(),
@@ -457,6 +494,7 @@ def _source_slices(sources, i, n):
         "eps": sources.epsilon[i].ravel(),
         "k_ref": None if sources.k_reference is None else sources.k_reference[i].ravel(),
         "eps_ref": None if sources.epsilon_reference is None else sources.epsilon_reference[i].ravel(),
+        "c_eps3": sources.c_eps3,
     }
 
 
@@ -508,7 +546,8 @@ def solve(
     outer iterations per station.  pseudo_step [m]: pseudo axial step of the periodic mode
     (default 4 D).  initial: a :class:`GasField` to start from (periodic mode).
     turbulence_relaxation, momentum_relaxation: implicit under-relaxation of k and epsilon,
-    and of the momentum equations, in the periodic mode (the march needs none).
+    and of the momentum equations (the march uses the first only, and retries a diverging
+    station with more of both: _march_station, ``GasField.station_relaxation``).
     cross_flow_solver: "coupled" (direct solve of cross-section momentum and continuity),
     "simplec", or None: coupled in the periodic mode, SIMPLEC in the march (where the strong
     axial term makes it converge in a few iterations at a fraction of the cost).
@@ -549,6 +588,7 @@ def solve(
     iters = np.zeros(nx, dtype=np.int64)
     limited = np.zeros(nx, dtype=np.int64)
     floored = np.zeros(nx, dtype=np.int64)
+    station_relax = np.full(nx, float(turbulence_relaxation))
     converged = True
     bar = _progress(nx if mesh.mode == "developing" else max_iterations, progress)
 
@@ -633,17 +673,10 @@ def solve(
                     if be.any():
                         hist[v] = np.where(be, p1, hist[v])
                         hist[key] = np.where(be, 1.0, c0)
-            st = prev1.copy()
             src = _source_slices(sources, i, n)
-            lo, hi = station_iterations
-            ok = False
-            for it in range(hi):
-                ch = solver.iterate(st, hist, c0, h, src, laminar, turbulence_relaxation)
-                residuals.append(ch)
-                if it + 1 >= lo and ch < stol:
-                    ok = True
-                    break
-            iters[i] = it + 1
+            st, ok, iters[i], station_relax[i] = _march_station(solver, prev1, hist, c0, h, src, laminar,
+                                                                turbulence_relaxation, station_iterations,
+                                                                stol, residuals)
             converged &= ok
             _store(out, G, tau, i, st)
             limited[i] = solver.limited
@@ -682,7 +715,49 @@ def solve(
         face_flux=st.flux.copy(),  # cross-section face mass fluxes of the last station (restarts)
         production_limited=limited,
         floored=floored,
+        station_relaxation=station_relax,
     )
+
+
+def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_iterations, stol, residuals):
+    """Iterate one station of the march to ``stol``: returns (state, converged, iterations,
+    implicit k-eps relaxation used).
+
+    The outer iteration lags mu_t.  Where strong particle sinks have all but laminarised the
+    flow (k ~ 1e-3 k_inlet), mu_t and the production of the cross-flow gradients can feed each
+    other from one iteration to the next (k up a factor 100 each second iteration, scene g at
+    4 eta0); a station that diverges is iterated again from the upstream state with the implicit
+    k-eps and momentum relaxations (r, m) of STATION_RELAXATION below the ones given, and up to
+    min(1/min(r, m), 4) times the iterations; the relaxed change per iteration is held to
+    ``stol`` min(r, m).  Only the last attempt's divergence is raised; a station that stays
+    unconverged after its iterations is reported as such (GasField.converged), not retried.
+    """
+    lo, hi = station_iterations
+    attempts = [(relax, solver.alpha_u)] + [(r, m) for r, m in STATION_RELAXATION
+                                             if r < relax or (r == relax and m < solver.alpha_u)]
+    alpha_u = solver.alpha_u
+    try:
+        for a, (r, m) in enumerate(attempts):
+            st = prev.copy()
+            solver.alpha_u = m
+            tol = stol * min(r, m)
+            cap = hi if a == 0 else int(hi * min(1.0 / min(r, m), 4.0))
+            ok = False
+            try:
+                for it in range(cap):
+                    ch = solver.iterate(st, hist, c0, h, src, laminar, r)
+                    residuals.append(ch)
+                    if it + 1 >= lo and ch < tol:
+                        ok = True
+                        break
+            except SolverDivergence:
+                if a + 1 == len(attempts):
+                    raise
+                continue
+            return st, ok, it + 1, min(r, m)
+    finally:
+        solver.alpha_u = alpha_u
+    raise AssertionError("unreachable")
 
 
 def _check_sources(mesh, sources):

@@ -136,6 +136,44 @@ def test_turbulence_sink_keeps_k_positive():
     assert g.k.mean() < 0.5 * f.k.mean()
 
 
+def test_closure_epsilon_source_of_a_sink_equals_the_referenced_explicit_one():
+    """With c_eps3, a referenced k sink S_k gives the eps sink C_eps3 eps S_k/k_ref: the same
+    linear sink as an explicit S_eps = C_eps3 (eps_ref/k_ref) S_k referred to eps_ref."""
+    U = 10.0
+    m, f = periodic(2e4, nr=10, nt=16)
+    explicit = Sources.zeros(m)
+    explicit.k[...] = -5.0 * RHO * f.epsilon
+    explicit.epsilon[...] = 1.8 * f.epsilon / f.k * explicit.k
+    explicit.k_reference, explicit.epsilon_reference = f.k, f.epsilon
+    closure = Sources(explicit.momentum, explicit.k, np.zeros_like(explicit.k), k_reference=f.k, c_eps3=1.8)
+    a = solve(m, GAS, U, sources=explicit, initial=f, tol=1e-9)
+    b = solve(m, GAS, U, sources=closure, initial=f, tol=1e-9)
+    assert a.k.mean() < 0.8 * f.k.mean()  # the sink acts
+    np.testing.assert_allclose(b.k, a.k, rtol=1e-6)
+    np.testing.assert_allclose(b.epsilon, a.epsilon, rtol=1e-6)
+    np.testing.assert_allclose(closure.applied_epsilon(b.k, b.epsilon), 1.8 * b.epsilon / b.k * explicit.k * b.k / f.k,
+                               rtol=1e-12)
+
+
+def test_closure_epsilon_source_follows_the_solved_turbulence():
+    """A positive S_k with c_eps3: the converged field carries S_eps = C_eps3 (eps/k) S_k with its
+    own eps/k, i.e. solving again with that S_eps as a fixed explicit source gives the same field."""
+    U = 10.0
+    m, f = periodic(2e4, nr=10, nt=16)
+    closure = Sources.zeros(m)
+    closure.k[...] = 2.0 * RHO * f.epsilon
+    closure.c_eps3 = 1.8
+    b = solve(m, GAS, U, sources=closure, initial=f, tol=1e-10)
+    assert b.k.mean() > 1.2 * f.k.mean()
+    fixed = Sources.zeros(m)
+    fixed.k[...] = closure.k
+    fixed.epsilon[...] = closure.applied_epsilon(b.k, b.epsilon)
+    np.testing.assert_allclose(fixed.epsilon, 1.8 * b.epsilon / b.k * closure.k, rtol=1e-12)
+    c = solve(m, GAS, U, sources=fixed, initial=b, tol=1e-10)
+    np.testing.assert_allclose(c.k, b.k, rtol=1e-5)
+    np.testing.assert_allclose(c.epsilon, b.epsilon, rtol=1e-5)
+
+
 def test_unsustainable_sink_stops_with_diagnosis_not_nan():
     """A fixed k sink 50x the dissipation has no positive steady solution: the solve stops naming k."""
     U = 10.0
@@ -170,3 +208,47 @@ def test_wall_shear_coefficient_is_continuous_at_the_sublayer_switch():
     # the edge is where u+ = y+ meets the log law, independently: y = ln(E y)/kappa
     assert ke.YSTAR_LAMINAR == pytest.approx(math.log(ke.E_WALL * ke.YSTAR_LAMINAR) / ke.KAPPA, rel=1e-12)
     assert 11.5 < ke.YSTAR_LAMINAR < 11.56
+
+
+def test_a_diverging_station_is_retried_with_relaxation_and_keeps_the_fixed_point(monkeypatch):
+    """A station of the march whose outer iteration diverges is iterated again with implicit
+    relaxation (rans.solver._march_station), and the relaxation used is recorded per station.
+    k-eps relaxation alone keeps the field the march gives without the failure (to the
+    tolerance); momentum relaxation changes the SIMPLEC interpolation weights, so the cross flow
+    of that station moves by a few % of its maximum and u_x, k, eps by < 1e-5."""
+    from rans import solver as S
+
+    U = 10.0
+    m = PipeMesh.build(D, 0.3, "developing", axial_cells=12, radial_cells=8, azimuthal_cells=12,
+                       bulk_velocity=U, density=RHO, viscosity=MU)
+    plain = solve(m, GAS, U, tol=1e-9)
+    assert np.all(plain.station_relaxation == 1.0)
+    orig = S._StationSolver._iterate
+
+    def run(diverges):
+        def iterate(self, st, hist, c0, dx, src, laminar, relax_turb):
+            if self.station == 5 and diverges(self, relax_turb):
+                raise SolverDivergence("gas solve diverged: epsilon = inf (test)")
+            return orig(self, st, hist, c0, dx, src, laminar, relax_turb)
+
+        monkeypatch.setattr(S._StationSolver, "_iterate", iterate)
+        return solve(m, GAS, U, tol=1e-9)
+
+    def deviation(f, name):
+        return np.abs(getattr(f, name) - getattr(plain, name)).max() / np.abs(getattr(plain, name)).max()
+
+    turb = run(lambda s, r: r == 1.0)  # retried with k-eps relaxation 0.5
+    assert turb.converged and turb.station_relaxation[5] == 0.5
+    assert np.all(np.delete(turb.station_relaxation, 5) == 1.0)
+    for name in ("ux", "uy", "uz", "k", "epsilon"):
+        assert deviation(turb, name) < 1e-7, name
+
+    mom = run(lambda s, r: s.alpha_u > 0.6)  # needs momentum relaxation 0.5 (k-eps 0.2)
+    assert mom.converged and mom.station_relaxation[5] == 0.2
+    for name in ("ux", "k", "epsilon"):
+        assert deviation(mom, name) < 1e-5, name
+    for name in ("uy", "uz"):
+        assert deviation(mom, name) < 0.05, name
+
+    with pytest.raises(SolverDivergence, match="epsilon = inf"):
+        run(lambda s, r: True)
