@@ -152,6 +152,8 @@ class _History:
     time_particles: list = field(default_factory=list)
     floored: list = field(default_factory=list)
     gas_relaxation: list = field(default_factory=list)  # implicit k-eps relaxation the gas solve needed
+    # net axial momentum the inter-particle collisions gave the particles / their momentum inflow
+    collision_momentum: list = field(default_factory=list)
 
     def arrays(self):
         return {k: np.asarray(v, dtype=np.float64) for k, v in self.__dict__.items()}
@@ -326,6 +328,8 @@ class CouplingLoop:
         fl = self.gas.floored
         h.floored.append(int(np.sum(fl)) if fl is not None else 0)
         h.gas_relaxation.append(gas_relax)
+        h.collision_momentum.append(float(b["particle_collisions"][0] / b["momentum_in"][0])
+                                    if b["momentum_in"][0] else math.nan)
         self.last_sample = sample
         if self.phase == "final":
             self._add_to_window(sample)
@@ -505,8 +509,9 @@ class CouplingLoop:
         self.stats = data.get("stats")
         if "window_0" in data:
             self.window = [data["window_0"].copy(), data["window_1"].copy(), data["window_2"].copy()]
-        for k in self.history.__dict__:
-            getattr(self.history, k).extend(data[f"hist_{k}"].tolist())
+        done = data["hist_residual"].size
+        for k in self.history.__dict__:  # a record added since the checkpoint: NaN for its passes
+            getattr(self.history, k).extend(data.get(f"hist_{k}", np.full(done, np.nan)).tolist())
         self.history.parcels = [int(v) for v in self.history.parcels]
         self.history.lost = [int(v) for v in self.history.lost]
         self.history.stuck = [int(v) for v in self.history.stuck]

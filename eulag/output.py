@@ -274,6 +274,11 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
         it, h["gas_relaxation"], "1",
         "smallest implicit k-epsilon under-relaxation a station of the pass's gas solve needed "
         "(1: every station converged at the first attempt)")
+    ds["collision_momentum_history"] = _var(
+        it, h["collision_momentum"], "1",
+        "net axial momentum the inter-particle collisions gave the particles in the pass / the "
+        "particles' axial momentum inflow (about 0 when the collision statistics match the "
+        "particles: the stochastic partners conserve momentum only on average)")
     ds["pressure_gradient_history"] = _var(it, h["pressure_gradient"], "Pa m-1",
                                            "pipe-mean -dp/dx after the pass's gas solve")
     ds["time_gas_solve_pass"] = _var(it, h["time_gas"], "s", "wall-clock time of the pass's gas solve")

@@ -52,6 +52,10 @@ def test_loop_history_and_bookkeeping(uninterrupted):
     flux = float((ds.particle_mass_flux.isel(x=0) * ds.cell_area).sum())
     assert flux == pytest.approx(mdot, rel=2e-3)
     assert float(ds.particle_concentration_stderr.max()) > 0
+    # the stochastic collision partners conserve momentum on average: at this loading their net
+    # axial momentum is a small fraction of the particles' inflow
+    cm = ds.collision_momentum_history.values
+    assert np.all(np.isfinite(cm)) and np.all(np.abs(cm) < 0.05), cm
 
 
 def test_resume_from_checkpoint_gives_the_same_dataset(tmp_path, uninterrupted):
@@ -63,6 +67,22 @@ def test_resume_from_checkpoint_gives_the_same_dataset(tmp_path, uninterrupted):
     del loop  # "killed" after the second pass
     resumed = run(case, tmp_path / "out.nc", resume=True)
     data_vars_equal(uninterrupted, resumed)
+
+
+def test_checkpoint_without_a_newer_history_record_resumes(tmp_path):
+    """A checkpoint written before a history record was added resumes, the record NaN for its passes."""
+    case = small_case(**{"numerics.max_passes": 3})
+    ckpt = tmp_path / "out.nc.checkpoint"
+    loop = CouplingLoop(case, checkpoint=ckpt)
+    loop.step()
+    with np.load(ckpt) as z:
+        data = {k: z[k] for k in z.files if k != "hist_collision_momentum"}
+    np.savez(ckpt, **data)
+    ckpt.with_suffix(".checkpoint.npz").replace(ckpt)
+    resumed = CouplingLoop(case, checkpoint=ckpt, resume=True)
+    assert resumed.pass_index == 1 and np.isnan(resumed.history.collision_momentum[0])
+    resumed.step()
+    assert np.isfinite(resumed.history.collision_momentum[1])
 
 
 def test_checkpoint_of_another_case_is_refused(tmp_path):
