@@ -122,7 +122,8 @@ class GasField:
     (nx,) cells per station held at the k/epsilon floors in the last iteration;
     station_relaxation (nx,) the smaller of the implicit k-epsilon and momentum relaxations
     each station was iterated with (below the one asked for where a diverging station was
-    retried, see _march_station).
+    retried, see _march_station); station_coupled (nx,) stations of the march retried with the
+    coupled cross-flow step.
     """
 
     mesh: PipeMesh
@@ -144,6 +145,7 @@ class GasField:
     production_limited: np.ndarray = field(default=None, repr=False)
     floored: np.ndarray = field(default=None, repr=False)
     station_relaxation: np.ndarray = field(default=None, repr=False)
+    station_coupled: np.ndarray = field(default=None, repr=False)
 
     @property
     def nut(self):
@@ -589,6 +591,7 @@ def solve(
     limited = np.zeros(nx, dtype=np.int64)
     floored = np.zeros(nx, dtype=np.int64)
     station_relax = np.full(nx, float(turbulence_relaxation))
+    station_coupled = np.zeros(nx, dtype=bool)
     converged = True
     bar = _progress(nx if mesh.mode == "developing" else max_iterations, progress)
 
@@ -674,9 +677,9 @@ def solve(
                         hist[v] = np.where(be, p1, hist[v])
                         hist[key] = np.where(be, 1.0, c0)
             src = _source_slices(sources, i, n)
-            st, ok, iters[i], station_relax[i] = _march_station(solver, prev1, hist, c0, h, src, laminar,
-                                                                turbulence_relaxation, station_iterations,
-                                                                stol, residuals)
+            st, ok, iters[i], station_relax[i], station_coupled[i] = _march_station(
+                solver, prev1, hist, c0, h, src, laminar, turbulence_relaxation, station_iterations, stol,
+                residuals)
             converged &= ok
             _store(out, G, tau, i, st)
             limited[i] = solver.limited
@@ -716,48 +719,65 @@ def solve(
         production_limited=limited,
         floored=floored,
         station_relaxation=station_relax,
+        station_coupled=station_coupled,
     )
 
 
 def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_iterations, stol, residuals):
     """Iterate one station of the march to ``stol``: returns (state, converged, iterations,
-    implicit k-eps relaxation used).
+    relaxation used, whether the coupled cross-flow step was used).
 
-    The outer iteration lags mu_t.  Where strong particle sinks have all but laminarised the
-    flow (k ~ 1e-3 k_inlet), mu_t and the production of the cross-flow gradients can feed each
-    other from one iteration to the next (k up a factor 100 each second iteration, scene g at
-    4 eta0); a station that diverges is iterated again from the upstream state with the implicit
-    k-eps and momentum relaxations (r, m) of STATION_RELAXATION below the ones given, and up to
-    min(1/min(r, m), 4) times the iterations; the relaxed change per iteration is held to
-    ``stol`` min(r, m).  Only the last attempt's divergence is raised; a station that stays
-    unconverged after its iterations is reported as such (GasField.converged), not retried.
+    The outer iteration lags mu_t, and the march's SIMPLEC cross-flow step is one pressure
+    correction per iteration.  Where strong particle sinks have all but laminarised the flow
+    (k ~ 1e-3 k_inlet), the cross flow, mu_t and the production of the cross-flow gradients can
+    feed each other (k up a factor 100 each second iteration at the axis, scene g at 4 eta0) or
+    keep the iteration wandering at a change of 1e-4..1e-3.  Such a station is iterated again
+    from the upstream state:
+
+    1. with the coupled cross-flow step (cross-section momentum and continuity solved together,
+       as in the periodic mode), when the march uses SIMPLEC: after a divergence, and after
+       the iterations ran out without convergence;
+    2. after a divergence only: with the implicit k-eps and momentum relaxations (r, m) of
+       STATION_RELAXATION below the ones given, up to min(1/min(r, m), 4) times the iterations,
+       the relaxed change per iteration held to ``stol`` min(r, m).
+
+    The k-eps relaxation keeps the discrete fixed point; the coupled step and the momentum
+    relaxation change the momentum-interpolation weights, so the cross flow of that station
+    moves by a few % of its maximum (tests).  Only the last attempt's divergence is raised; a
+    station still unconverged is returned (the attempt with the smaller last change) and
+    reported by GasField.converged.
     """
     lo, hi = station_iterations
-    attempts = [(relax, solver.alpha_u)] + [(r, m) for r, m in STATION_RELAXATION
-                                             if r < relax or (r == relax and m < solver.alpha_u)]
-    alpha_u = solver.alpha_u
+    attempts = [(relax, solver.alpha_u, solver.coupled)]
+    if not solver.coupled:
+        attempts.append((relax, solver.alpha_u, True))
+    attempts += [(r, m, solver.coupled) for r, m in STATION_RELAXATION
+                 if r < relax or (r == relax and m < solver.alpha_u)]
+    alpha_u, coupled = solver.alpha_u, solver.coupled
+    best = None
     try:
-        for a, (r, m) in enumerate(attempts):
+        for a, (r, m, cp) in enumerate(attempts):
+            if best is not None and not (cp and not coupled):
+                break  # an unconverged station is retried with the coupled step only
             st = prev.copy()
-            solver.alpha_u = m
+            solver.alpha_u, solver.coupled = m, cp
             tol = stol * min(r, m)
-            cap = hi if a == 0 else int(hi * min(1.0 / min(r, m), 4.0))
-            ok = False
+            cap = hi if (r, m) == (relax, alpha_u) else int(hi * min(1.0 / min(r, m), 4.0))
             try:
                 for it in range(cap):
                     ch = solver.iterate(st, hist, c0, h, src, laminar, r)
                     residuals.append(ch)
                     if it + 1 >= lo and ch < tol:
-                        ok = True
-                        break
+                        return st, True, it + 1, min(r, m), cp
             except SolverDivergence:
-                if a + 1 == len(attempts):
+                if a + 1 == len(attempts) and best is None:
                     raise
                 continue
-            return st, ok, it + 1, min(r, m)
+            if best is None or ch < best[0]:
+                best = (ch, st, it + 1, min(r, m), cp)
     finally:
-        solver.alpha_u = alpha_u
-    raise AssertionError("unreachable")
+        solver.alpha_u, solver.coupled = alpha_u, coupled
+    return best[1], False, best[2], best[3], best[4]
 
 
 def _check_sources(mesh, sources):

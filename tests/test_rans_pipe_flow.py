@@ -250,5 +250,44 @@ def test_a_diverging_station_is_retried_with_relaxation_and_keeps_the_fixed_poin
     for name in ("uy", "uz"):
         assert deviation(mom, name) < 0.05, name
 
+    assert not mom.station_coupled.any()
+
+    # SIMPLEC diverges: the coupled cross-flow step takes the station (no relaxation)
+    cpl = run(lambda s, r: not s.coupled)
+    assert cpl.converged and cpl.station_coupled[5] and cpl.station_coupled.sum() == 1
+    assert np.all(cpl.station_relaxation == 1.0)
+    for name in ("ux", "k", "epsilon"):
+        assert deviation(cpl, name) < 1e-4, name
+    for name in ("uy", "uz"):
+        assert deviation(cpl, name) < 0.05, name
+
     with pytest.raises(SolverDivergence, match="epsilon = inf"):
         run(lambda s, r: True)
+
+
+def test_a_stalling_station_is_retried_with_the_coupled_cross_flow_step(monkeypatch):
+    """A station whose SIMPLEC iteration does not reach the tolerance within its iterations is
+    iterated again with the coupled cross-flow step; the march then converges."""
+    from rans import solver as S
+
+    U = 10.0
+    m = PipeMesh.build(D, 0.3, "developing", axial_cells=12, radial_cells=8, azimuthal_cells=12,
+                       bulk_velocity=U, density=RHO, viscosity=MU)
+    orig = S._StationSolver._iterate
+
+    def stalling(self, st, hist, c0, dx, src, laminar, relax_turb):
+        ch = orig(self, st, hist, c0, dx, src, laminar, relax_turb)
+        return ch if self.coupled or self.station != 7 else max(ch, 1e-3)
+
+    monkeypatch.setattr(S._StationSolver, "_iterate", stalling)
+    f = solve(m, GAS, U, tol=1e-9, station_iterations=(2, 60))
+    assert f.converged and f.station_coupled[7] and f.station_coupled.sum() == 1
+    assert f.station_iterations[7] < 60
+
+    def always(self, st, hist, c0, dx, src, laminar, relax_turb):
+        ch = orig(self, st, hist, c0, dx, src, laminar, relax_turb)
+        return ch if self.station != 7 else max(ch, 1e-3)
+
+    monkeypatch.setattr(S._StationSolver, "_iterate", always)
+    g = solve(m, GAS, U, tol=1e-9, station_iterations=(2, 60))
+    assert not g.converged and g.station_iterations[7] == 60
