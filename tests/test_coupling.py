@@ -191,3 +191,20 @@ def test_relaxation_is_halved_when_the_residual_stagnates(residuals, halved):
         loop.pass_index += 1
         loop._check_stagnation()
         assert loop.alpha == 0.15
+
+
+def test_collision_statistics_keep_the_case_relaxation_when_alpha_is_lowered():
+    # α lowered for the gas (0.075) must not freeze the partner statistics at the first passes'
+    from particles.layout import CS_OK, CS_U, NCS
+
+    loop = CouplingLoop(small_case(**{"numerics.relaxation": 0.3}))
+    old, new = np.zeros((2, NCS)), np.zeros((2, NCS))
+    old[:, CS_OK] = new[:, CS_OK] = 1
+    old[:, CS_U], new[:, CS_U] = 10.0, 6.0
+    loop.stats = old
+    loop.alpha = 0.075
+    assert loop.statistics_weight() == 0.3
+    out = loop._next_statistics(new)
+    np.testing.assert_allclose(out[:, CS_U], 0.7 * 10.0 + 0.3 * 6.0)
+    loop.alpha = 0.5     # a larger α (a case relaxing faster) is used as it is
+    assert loop.statistics_weight() == 0.5
