@@ -390,7 +390,22 @@ def _record_from_dataset(name, case, out, ds) -> RunRecord:
     msg = "" if converged else _why_not_converged(ds, case)
     return RunRecord(name, case, out, "converged" if converged else "not converged", msg, run_time(ds),
                      passes, float(res[-1]) if res.size else math.nan,
-                     float(relax[-1]) if relax.size else math.nan)
+                     float(relax[-1]) if relax.size else math.nan,
+                     metrics={"collision_momentum": _collision_momentum(ds, case)})
+
+
+def _collision_momentum(ds, case: Case) -> float:
+    """Net axial momentum the stochastic inter-particle collisions gave the particles, over
+    their momentum inflow, averaged over the final passes (NaN: not recorded, i.e. a dataset
+    written before the record existed, or no inter-particle collisions).  Real collisions
+    conserve momentum; the fictitious partners do so only while the cell statistics they are
+    drawn from match the particles, so this is the model's momentum error."""
+    if "collision_momentum_history" not in ds:
+        return math.nan
+    v = np.asarray(ds["collision_momentum_history"].values, dtype=float)
+    v = v[-max(1, case.numerics.average_passes):] if case is not None else v[-1:]
+    v = v[np.isfinite(v)]
+    return float(np.mean(v)) if v.size else math.nan
 
 
 def _why_not_converged(ds, case: Case) -> str:
@@ -566,14 +581,24 @@ def _status_cell(rec: RunRecord) -> str:
     return f"{rec.status}: {rec.message}"
 
 
+COLLISION_MOMENTUM_TEXT = (
+    "collision momentum / inflow = the net axial momentum the stochastic inter-particle collisions "
+    "gave the particles over their momentum inflow, mean of the final passes (real collisions "
+    "conserve momentum; the fictitious partners do so only while the cell statistics they are drawn "
+    "from match the particles, so this is the collision model's momentum error; — where the "
+    "dataset predates the record or the run failed)")
+
+
 def _run_columns() -> list[Column]:
     return [Column("converged", "converged"), Column("passes", "passes", "{:d}"),
-            Column("time_s", "run time [s]", "{:.1f}")]
+            Column("time_s", "run time [s]", "{:.1f}"),
+            Column("collision_momentum", "collision momentum / inflow", "{:+.2g}")]
 
 
 def _run_cells(rec: RunRecord) -> dict:
     return {"converged": _status_cell(rec), "passes": rec.passes, "time_s": rec.time,
-            "final_residual": rec.residual, "relaxation": rec.relaxation}
+            "final_residual": rec.residual, "relaxation": rec.relaxation,
+            "collision_momentum": rec.metrics.get("collision_momentum")}
 
 
 def _settings_text(cases: list[Case], quick: bool) -> str:
@@ -836,7 +861,8 @@ def study_tsuji_morikawa(args, outdir: Path, t_start: float) -> int:
         "(their noise reaches it through the sources). The digitising error of the measured points "
         "is about ±1-2 % of the reference velocity (file header). Point by point (u_x / U0 at each "
         "measured y/R, measured and simulated, with the particle standard error): "
-        "[tsuji-morikawa_points.csv](tsuji-morikawa_points.csv).",
+        "[tsuji-morikawa_points.csv](tsuji-morikawa_points.csv). Last column: "
+        + COLLISION_MOMENTUM_TEXT + ".",
         "",
         "Provenance of the measurements (header of the file):", "", prov]
     write_report(outdir, "tsuji-morikawa", args, title="Tsuji–Morikawa comparison", intro=intro,
@@ -952,7 +978,8 @@ def study_scenes(args, outdir: Path, t_start: float) -> int:
         "(`recirculation_cells`); the half (upper y > 0 / lower y < 0) holding the maximum of the gas "
         "axial velocity; particle-wall impacts per wall area and time on the upper and lower wall "
         "halves at the station; the section-mean -dp/dx at the station and its ratio to the "
-        "single-phase value; coupling passes and run time. Figures: the three-panel section figure of "
+        "single-phase value; coupling passes and run time; " + COLLISION_MOMENTUM_TEXT + ". "
+        "Figures: the three-panel section figure of "
         "each scene (gas axial velocity with the secondary-flow stream lines, particle axial "
         "velocity, particle concentration / section mean); profile and convergence figures of each "
         "scene are in `figures/`."]
@@ -1326,7 +1353,8 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
                      "relax_min": m.get("relax_min"), "stuck_total": m.get("stuck_total"),
                      "stuck_final": m.get("stuck_final"), "lost": m.get("lost"),
                      "sliding_pct": m.get("sliding_pct"), "nonfinite": m.get("nonfinite"),
-                     "k_min": m.get("k_min"), "eps_min": m.get("eps_min"), "first_wrong": wrong})
+                     "k_min": m.get("k_min"), "eps_min": m.get("eps_min"),
+                     "collision_momentum": m.get("collision_momentum"), "first_wrong": wrong})
     columns = [Column("case", "case"), Column("change", "change from the base case"),
                Column("converged", "converged"), Column("passes", "passes", "{:d}"),
                Column("time_s", "run time [s]", "{:.1f}"), Column("final_residual", "final residual", "{:.3g}"),
@@ -1336,6 +1364,7 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
                Column("sliding_pct", "sliding/rolling steps [%]", "{:.3g}"),
                Column("nonfinite", "non-finite gas fields"), Column("k_min", "min k [m²/s²]", "{:.3g}"),
                Column("eps_min", "min ε [m²/s³]", "{:.3g}"),
+               Column("collision_momentum", "collision momentum / inflow", "{:+.2g}"),
                Column("first_wrong", "first quantity to go wrong / why not converged")]
     base = _base_case(args.quick)
     try:
@@ -1378,7 +1407,8 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
         "parcels stopped by the residence-time cap "
         "(all passes, and in the averaged final passes); lost parcels (must be 0); the share of "
         "particle steps spent sliding or rolling on the wall (final passes; near saltation this is "
-        "the bottom layer); gas fields with a non-finite value; the smallest k and epsilon; the first "
+        "the bottom layer); gas fields with a non-finite value; the smallest k and epsilon; "
+        + COLLISION_MOMENTUM_TEXT + "; the first "
         "quantity to go wrong (the CouplingError message), or why the run did not converge."]
     fig = _stability_figure(outdir / "stability_history.png", specs, records)
     write_report(outdir, "stability", args, title="Stiff and extreme cases", intro=intro, columns=columns,

@@ -81,6 +81,16 @@ def test_tsuji_morikawa_quick_compares_four_runs_with_the_digitised_profiles(tm)
         assert number(r["time_s"]) > 0
         if r["phase"] == "particle":
             assert number(r["stderr"]) > 0.0  # the batch standard error of the simulation
+        # the collision model's momentum error: from the run's history; none without collisions
+        cm = number(r["collision_momentum"])
+        if r["coupling"] == "two-way":
+            assert cm == 0.0
+        else:
+            import xarray as xr
+
+            with xr.open_dataset(out / f"tm_U{r['U0'][:2]}_four-way.nc") as ds:
+                want = float(np.mean(ds["collision_momentum_history"].values[-int(ds.attrs["numerics.average_passes"]):]))
+            assert np.isfinite(cm) and cm == pytest.approx(want, rel=0.01, abs=1e-3)
     points = rows(out / "tsuji-morikawa_points.csv")
     assert len(points) == 4 * 2 * 15
     assert all(np.isfinite(number(pt["simulated"])) for pt in points)
