@@ -256,7 +256,12 @@ def _run_coupled(args, case: Case, out: Path, t_start: float) -> int:
                                 f"{state.parcels} parcels, {state.phase}")
 
     try:
-        loop = CouplingLoop(case, checkpoint=ckpt, resume=args.resume, progress=progress, tracker=tracker)
+        def notify(text):
+            if bar is not None:
+                bar.write(f"{case.name}: {text}", file=sys.stderr)
+
+        loop = CouplingLoop(case, checkpoint=ckpt, resume=args.resume, progress=progress, tracker=tracker,
+                            notify=notify)
         if bar is not None and loop.pass_index:
             bar.update(loop.pass_index)
         loop.run()

@@ -171,12 +171,15 @@ class CouplingLoop:
     resume : continue from ``checkpoint`` if it exists (it must belong to the same case)
     parcels : override of numerics.parcels (and parcels_start, if larger)
     progress : callable(PassState) or None, called after every pass
+    notify : callable(str) or None, told of what happens inside a pass that the user should
+        see before it ends: a gas solve that failed and is retried with more relaxation, α
+        halved by the stagnation rule
     tracker : callable with the signature of :func:`particles.track` that runs a Lagrangian
         pass (default: ``particles.track``, local numba threads; e.g. a Dask-distributed one)
     """
 
     def __init__(self, case, *, checkpoint=None, resume=False, parcels=None, progress=None,
-                 tracker=None):
+                 tracker=None, notify=None):
         if case.particles is None:
             raise ValueError("CouplingLoop needs a case with [particles]")
         if parcels is not None:
@@ -185,6 +188,7 @@ class CouplingLoop:
         self.case = case
         self.checkpoint = Path(checkpoint) if checkpoint is not None else None
         self.progress = progress
+        self.notify = notify
         self.tracker = particles.track if tracker is None else tracker
         self.mesh = build_mesh(case)
         self.gas_props = rans.GasProperties(density=case.gas.density, viscosity=case.gas.viscosity)
@@ -240,9 +244,12 @@ class CouplingLoop:
                     sr = field_.station_relaxation
                     used = min(tr, float(np.min(sr))) if sr is not None else tr
                     break
-                except rans.SolverDivergence:
+                except rans.SolverDivergence as err:
                     if attempt + 1 == len(self._GAS_RELAXATION):
                         raise
+                    self._tell(f"gas solve failed with k-eps/momentum relaxation {tr:g}/{mr:g} "
+                               f"({err}); retrying with {self._GAS_RELAXATION[attempt + 1][0]:g}/"
+                               f"{self._GAS_RELAXATION[attempt + 1][1]:g}")
         finally:
             dt = time.perf_counter() - t0
             self.timings["gas_solve"] += dt
@@ -320,6 +327,8 @@ class CouplingLoop:
                     if alpha / 2 < MIN_RELAXATION:
                         raise CouplingError(f"pass {m}: gas solve with the particle sources failed even "
                                             f"with relaxation {alpha:g}: {err}") from None
+                    self._tell(f"pass {m}: gas solve with source relaxation {alpha:g} failed ({err}); "
+                               f"retrying with {max(MIN_RELAXATION, alpha / 2):g}")
                     alpha = max(MIN_RELAXATION, alpha / 2)
             if alpha != self.alpha:
                 self.alpha_changed_at = m - 1
@@ -379,6 +388,12 @@ class CouplingLoop:
         if np.all(last >= tol) and last.min() > _STAGNATION_GAIN * before.min():
             self.alpha = max(MIN_RELAXATION, self.alpha / 2)
             self.alpha_changed_at = self.pass_index - 1
+            self._tell(f"pass {self.pass_index}: the residual stagnates above {tol:g} "
+                       f"(last {w} passes {last.min():.3g}-{last.max():.3g}); relaxation halved to {self.alpha:g}")
+
+    def _tell(self, text):
+        if self.notify is not None:
+            self.notify(text)
 
     def _computed_sources(self, sample):
         mom = np.stack([sample.momentum_source(c) for c in range(3)])
@@ -588,7 +603,7 @@ def _atomic_savez(path, arrays):
     atomic_write(path, write)
 
 
-def run(case, out=None, *, resume=False, parcels=None, progress=None, tracker=None):
+def run(case, out=None, *, resume=False, parcels=None, progress=None, tracker=None, notify=None):
     """Run ``case`` to the end and return its dataset; write it to ``out`` if given.
 
     The checkpoint lives beside the output (``out.nc.checkpoint``); ``tracker``: see
@@ -599,7 +614,7 @@ def run(case, out=None, *, resume=False, parcels=None, progress=None, tracker=No
     t0 = time.perf_counter()
     ckpt = Path(str(out) + ".checkpoint") if out is not None else None
     loop = CouplingLoop(case, checkpoint=ckpt, resume=resume, parcels=parcels, progress=progress,
-                        tracker=tracker)
+                        tracker=tracker, notify=notify)
     loop.run()
     loop.timings["total"] = loop.timings.get("total", 0.0) + (time.perf_counter() - t0)
     ds = coupled_dataset(loop)

@@ -327,7 +327,8 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
         _log(args, f"  {label}: running ({_describe_numerics(case)})")
         t0 = time.perf_counter()
         try:
-            ds = run(case, out, resume=resume, progress=_progress_printer(args, name, history))
+            ds = run(case, out, resume=resume, progress=_progress_printer(args, name, history),
+                     notify=lambda text: _log(args, f"    {name}: {text}"))
         except (CouplingError, rans.SolverDivergence, FloatingPointError) as exc:
             kind = "failed"
             msg = " ".join(f"{exc}".split()) or type(exc).__name__

@@ -180,11 +180,14 @@ def test_collision_statistics_are_relaxed_like_the_sources():
     ([3.0, 2.6, 2.4, 2.5, 2.3, 2.4, 2.5], False),         # too few passes to judge
 ])
 def test_relaxation_is_halved_when_the_residual_stagnates(residuals, halved):
-    loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5}))
+    told = []
+    loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5}), notify=told.append)
     loop.history.residual = [float("nan")] + residuals
     loop.pass_index = len(loop.history.residual) + 1
     loop._check_stagnation()
     assert loop.alpha == (0.15 if halved else 0.3)
+    # the user is told when it happens, not only in the next pass line
+    assert [("halved to 0.15" in t) for t in told] == ([True] if halved else [])
     if halved:
         # the next judgement waits for 2 W passes at the new relaxation
         loop.history.residual += [2.3]
@@ -208,3 +211,25 @@ def test_collision_statistics_keep_the_case_relaxation_when_alpha_is_lowered():
     np.testing.assert_allclose(out[:, CS_U], 0.7 * 10.0 + 0.3 * 6.0)
     loop.alpha = 0.5     # a larger α (a case relaxing faster) is used as it is
     assert loop.statistics_weight() == 0.5
+
+
+def test_a_failing_gas_solve_is_retried_with_half_the_relaxation_and_the_user_is_told():
+    import rans
+
+    told = []
+    loop = CouplingLoop(small_case(), notify=told.append)
+    orig = loop._solve_gas
+    with_sources = []
+
+    def flaky(sources):
+        if sources is not None:
+            with_sources.append(1)
+            if len(with_sources) == 1:
+                raise rans.SolverDivergence("k = nan at x = 0.1 m (test)")
+        return orig(sources)
+
+    loop._solve_gas = flaky
+    state = loop.step()
+    assert loop.alpha == 0.15 and state.relaxation == 0.15 and len(with_sources) == 2
+    assert told == ["pass 1: gas solve with source relaxation 0.3 failed (k = nan at x = 0.1 m (test)); "
+                    "retrying with 0.15"]
