@@ -220,8 +220,12 @@ class CouplingLoop:
             self._load()
 
     # ------------------------------------------------------------------ gas
-    # implicit under-relaxation of (k, eps) and momentum tried in turn when a gas solve with
-    # strong particle sinks fails
+    # implicit under-relaxation of (k, eps) and momentum tried in turn when a periodic gas solve
+    # with strong particle sinks fails.  The developing march retries a failing station itself
+    # (rans.solver._march_station: the coupled cross-flow step, then k-eps/momentum relaxations
+    # down to 0.05/0.3) and the stations upstream of it converge to the same state whatever the
+    # relaxation, so a whole new march with more relaxation would mostly repeat those attempts:
+    # there, a failed solve goes straight to the halving of the source relaxation α.
     _GAS_RELAXATION = ((1.0, 1.0), (0.7, 1.0), (0.5, 0.7))
 
     def _solve_gas(self, sources):
@@ -234,7 +238,8 @@ class CouplingLoop:
         cap = n.gas_iterations_per_pass if inner else n.gas_max_iterations
         t0 = time.perf_counter()
         try:
-            for attempt, (tr, mr) in enumerate(self._GAS_RELAXATION):
+            relaxations = self._GAS_RELAXATION if self.mesh.mode == "periodic" else self._GAS_RELAXATION[:1]
+            for attempt, (tr, mr) in enumerate(relaxations):
                 try:
                     field_ = rans.solve(self.mesh, self.gas_props, g.bulk_velocity, g.inlet_k,
                                         g.inlet_epsilon, sources, tol=n.gas_tolerance,
@@ -245,11 +250,11 @@ class CouplingLoop:
                     used = min(tr, float(np.min(sr))) if sr is not None else tr
                     break
                 except rans.SolverDivergence as err:
-                    if attempt + 1 == len(self._GAS_RELAXATION):
+                    if attempt + 1 == len(relaxations):
                         raise
                     self._tell(f"gas solve failed with k-eps/momentum relaxation {tr:g}/{mr:g} "
-                               f"({err}); retrying with {self._GAS_RELAXATION[attempt + 1][0]:g}/"
-                               f"{self._GAS_RELAXATION[attempt + 1][1]:g}")
+                               f"({err}); retrying with {relaxations[attempt + 1][0]:g}/"
+                               f"{relaxations[attempt + 1][1]:g}")
         finally:
             dt = time.perf_counter() - t0
             self.timings["gas_solve"] += dt

@@ -233,3 +233,26 @@ def test_a_failing_gas_solve_is_retried_with_half_the_relaxation_and_the_user_is
     assert loop.alpha == 0.15 and state.relaxation == 0.15 and len(with_sources) == 2
     assert told == ["pass 1: gas solve with source relaxation 0.3 failed (k = nan at x = 0.1 m (test)); "
                     "retrying with 0.15"]
+
+
+def test_a_failed_developing_march_goes_straight_to_a_smaller_source_relaxation(monkeypatch):
+    """The march retries a failing station itself; the loop does not march again with more
+    k-eps relaxation (that would repeat the station's attempts), it halves α."""
+    import rans
+
+    loop = CouplingLoop(small_case(**{"pipe.mode": "developing", "pipe.length": 0.2,
+                                      "numerics.axial_cells": 10}))
+    assert loop.mesh.mode == "developing"
+    real = rans.solve
+    calls = []
+
+    def solve(*args, **kwargs):
+        if args[5] is not None:
+            calls.append(kwargs["turbulence_relaxation"])
+            if len(calls) == 1:
+                raise rans.SolverDivergence("epsilon = inf (test)")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(rans, "solve", solve)
+    loop.step()
+    assert calls == [1.0, 1.0] and loop.alpha == 0.15
