@@ -112,6 +112,7 @@ def gas_dataset(case, mesh, field, *, timings: Mapping[str, float] | None = None
         "history": f"{_dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds')} "
                    f"eulag {eulag.__version__} run {case.name}",
         "eulag_version": eulag.__version__,
+        "eulag_commit": eulag.git_commit(),
         "seed": int(case.numerics.seed),
         "converged": "true" if converged else "false",
         "gas_converged": "true" if converged else "false",

@@ -37,7 +37,6 @@ import json
 import math
 import os
 import platform
-import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
@@ -392,7 +391,8 @@ def _record_from_dataset(name, case, out, ds) -> RunRecord:
     return RunRecord(name, case, out, "converged" if converged else "not converged", msg, run_time(ds),
                      passes, float(res[-1]) if res.size else math.nan,
                      float(relax[-1]) if relax.size else math.nan,
-                     metrics={"collision_momentum": _collision_momentum(ds, case)})
+                     metrics={"collision_momentum": _collision_momentum(ds, case),
+                              "commit": ds.attrs.get("eulag_commit")})
 
 
 def _collision_momentum(ds, case: Case) -> float:
@@ -452,7 +452,7 @@ def machine_info() -> dict[str, Any]:
         info["numba_threads"] = numba.get_num_threads()
     except Exception:  # noqa: BLE001
         pass
-    info["commit"] = _git_commit()
+    info["commit"] = eulag.git_commit()
     return info
 
 
@@ -465,20 +465,6 @@ def _cpu_model() -> str:
     except OSError:
         pass
     return platform.processor() or "unknown"
-
-
-def _git_commit() -> str:
-    repo = Path(__file__).resolve().parent.parent
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=repo, capture_output=True,
-                              text=True, timeout=10)
-        if head.returncode != 0:
-            return "unknown (not a git checkout)"
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=repo,
-                               capture_output=True, text=True, timeout=10)
-        return head.stdout.strip() + (" (with uncommitted changes)" if dirty.stdout.strip() else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
 
 
 @dataclass
@@ -593,13 +579,15 @@ COLLISION_MOMENTUM_TEXT = (
 def _run_columns() -> list[Column]:
     return [Column("converged", "converged"), Column("passes", "passes", "{:d}"),
             Column("time_s", "run time [s]", "{:.1f}"),
-            Column("collision_momentum", "collision momentum / inflow", "{:+.2g}")]
+            Column("collision_momentum", "collision momentum / inflow", "{:+.2g}"),
+            Column("commit", "commit")]
 
 
 def _run_cells(rec: RunRecord) -> dict:
     return {"converged": _status_cell(rec), "passes": rec.passes, "time_s": rec.time,
             "final_residual": rec.residual, "relaxation": rec.relaxation,
-            "collision_momentum": rec.metrics.get("collision_momentum")}
+            "collision_momentum": rec.metrics.get("collision_momentum"),
+            "commit": rec.metrics.get("commit")}
 
 
 def _settings_text(cases: list[Case], quick: bool) -> str:
@@ -1148,7 +1136,7 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
                Column("meas_gas", "gas vs meas. [% U0]", "{:.3g}"),
                Column("meas_particle", "part. vs meas. [% U0]", "{:.3g}"),
                Column("pareto", "Pareto"), Column("converged", "converged"),
-               Column("passes", "passes", "{:d}")]
+               Column("passes", "passes", "{:d}"), Column("commit", "commit")]
     fig = _er_figure(outdir / "error_runtime.png", rows, cand, front)
     pareto_lines = []
     for i in front:
@@ -1355,7 +1343,8 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
                      "stuck_final": m.get("stuck_final"), "lost": m.get("lost"),
                      "sliding_pct": m.get("sliding_pct"), "nonfinite": m.get("nonfinite"),
                      "k_min": m.get("k_min"), "eps_min": m.get("eps_min"),
-                     "collision_momentum": m.get("collision_momentum"), "first_wrong": wrong})
+                     "collision_momentum": m.get("collision_momentum"), "commit": m.get("commit"),
+                     "first_wrong": wrong})
     columns = [Column("case", "case"), Column("change", "change from the base case"),
                Column("converged", "converged"), Column("passes", "passes", "{:d}"),
                Column("time_s", "run time [s]", "{:.1f}"), Column("final_residual", "final residual", "{:.3g}"),
@@ -1366,6 +1355,7 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
                Column("nonfinite", "non-finite gas fields"), Column("k_min", "min k [m²/s²]", "{:.3g}"),
                Column("eps_min", "min ε [m²/s³]", "{:.3g}"),
                Column("collision_momentum", "collision momentum / inflow", "{:+.2g}"),
+               Column("commit", "commit"),
                Column("first_wrong", "first quantity to go wrong / why not converged")]
     base = _base_case(args.quick)
     try:

@@ -79,6 +79,7 @@ def test_tsuji_morikawa_quick_compares_four_runs_with_the_digitised_profiles(tm)
         assert np.isfinite(rms) and 0.0 <= rms <= mx + 1e-12
         assert int(r["points"]) == 15  # the file's points per profile
         assert number(r["time_s"]) > 0
+        assert r["commit"] and r["commit"] != "None"  # the code that made the run (eulag_commit)
         if r["phase"] == "particle":
             assert number(r["stderr"]) > 0.0  # the batch standard error of the simulation
         # the collision model's momentum error: from the run's history; none without collisions
