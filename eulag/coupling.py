@@ -14,7 +14,8 @@ Cycle (the reference paper's):
    if the residual stagnates above the tolerance, see below), and a Lagrangian pass in the new
    gas field with the cell statistics of the earlier passes.  The cell statistics the
    inter-particle collisions use (number density, velocity moments, collision frequency) are
-   relaxed with ``numerics.relaxation`` (not with a lowered α): statistics taken from one pass
+   relaxed with ``numerics.relaxation`` (not with a lowered α; those of the collision-free first
+   pass are replaced, not blended, by the second pass's): statistics taken from one pass
    alone feed back with a negative gain (dense cell → many collisions → the particles spread →
    few collisions next pass …), which for 50 µm particles at η = 2.2 made the loop oscillate
    between two states; statistics relaxed with a lowered α stay stale and inject momentum
@@ -270,7 +271,10 @@ class CouplingLoop:
         return max(self.alpha, self.case.numerics.relaxation)
 
     def _next_statistics(self, new):
-        if self.stats is None or not self.two_way:
+        # the first pass runs without inter-particle collisions (no statistics yet): its
+        # statistics only start the second pass, and the first collisional pass's replace them
+        # rather than being blended with them (they belong to another model)
+        if self.stats is None or not self.two_way or self.pass_index <= 2:
             return new
         return _relax_statistics(self.stats, new, self.statistics_weight())
 

@@ -205,6 +205,9 @@ def test_collision_statistics_keep_the_case_relaxation_when_alpha_is_lowered():
     old[:, CS_OK] = new[:, CS_OK] = 1
     old[:, CS_U], new[:, CS_U] = 10.0, 6.0
     loop.stats = old
+    loop.pass_index = 2   # the statistics held are the collision-free first pass's: replaced
+    np.testing.assert_array_equal(loop._next_statistics(new), new)
+    loop.pass_index = 5
     loop.alpha = 0.075
     assert loop.statistics_weight() == 0.3
     out = loop._next_statistics(new)
