@@ -40,7 +40,9 @@ changes are pure noise).  Converged when the residual is below ``numerics.coupli
 and, over the last three passes, the section-mean pressure gradient changed so little that
 the drift still to come of the relaxed iteration (least-squares change per pass over the last
 four values × (1 − α)/α) is below 1 %
-and the particle mass balance (in = out + stuck) closes within 1 %.  Then ``average_passes``
+and the particle mass balance (in = out + stuck) closes within 1 %, and the net momentum the
+stochastic inter-particle collisions gave the particles is below 2 % of their momentum inflow
+(mean of the last three passes; ``collision_momentum_settled``).  Then ``average_passes``
 final passes with ``numerics.parcels`` parcels give the reported statistics (their average);
 the earlier passes use ``numerics.parcels_start``.  One-way coupling solves the gas once and
 runs the final passes only.
@@ -75,6 +77,20 @@ _STAGNATION_GAIN = 0.9  # the best residual must fall below this fraction of the
 _FLOOR = 0.01  # noise floor of the residual, as a fraction of the RMS source
 _INTEGRAL_TOL = 0.01  # pressure gradient and mass balance, relative
 _INTEGRAL_PASSES = 3
+#: |net axial momentum the stochastic collisions gave the particles| / their momentum inflow,
+#: mean of the last _INTEGRAL_PASSES passes, below which the loop may call itself converged
+COLLISION_MOMENTUM_TOL = 0.02
+
+
+def collision_momentum_settled(history) -> bool:
+    """Whether the stochastic collisions' net momentum (per pass, / the particle inflow) has
+    fallen below COLLISION_MOMENTUM_TOL over the last passes.  Real collisions conserve
+    momentum; the fictitious partners do so once the cell statistics match the particles, which
+    where f_coll τ_p >> 1 takes many passes after the sources have settled (README "Coupling",
+    item 6).  Passes without a record (NaN: resumed from an older checkpoint) do not count."""
+    v = np.asarray(history[-_INTEGRAL_PASSES:], dtype=float)
+    v = v[np.isfinite(v)]
+    return v.size == 0 or abs(float(np.mean(v))) < COLLISION_MOMENTUM_TOL
 
 
 class CouplingError(RuntimeError):
@@ -468,7 +484,9 @@ class CouplingLoop:
         drift = abs(trend) * max(1.0, (1.0 - alpha) / alpha)
         if drift > _INTEGRAL_TOL * abs(dp[-1]):
             return False
-        return max(h.mass_balance[-_INTEGRAL_PASSES:]) < _INTEGRAL_TOL
+        if not max(h.mass_balance[-_INTEGRAL_PASSES:]) < _INTEGRAL_TOL:
+            return False
+        return collision_momentum_settled(h.collision_momentum)
 
     def _add_to_window(self, s):
         if self.window is None:

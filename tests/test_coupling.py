@@ -1,5 +1,7 @@
 """The coupling loop: bookkeeping, history, checkpoint/resume equality, physics switches."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -293,3 +295,27 @@ def test_k_sink_of_small_particles_matches_the_langevin_two_fluid_result(diamete
     assert ok.sum() > 0.5 * core.sum()
     ratio = np.median(s.k_source[ok] / want[ok])
     assert lo < ratio < hi, ratio
+
+
+def test_convergence_waits_for_the_collision_momentum_to_settle():
+    """Sources and pressure gradient settled, but the fictitious partners still inject 12 % of
+    the particle momentum inflow (eta = 10 at 'convergence' before this check): not converged."""
+    from eulag.coupling import COLLISION_MOMENTUM_TOL, collision_momentum_settled
+
+    assert COLLISION_MOMENTUM_TOL == 0.02
+    assert not collision_momentum_settled([0.0, 0.3, 0.13, 0.125, 0.122])
+    assert collision_momentum_settled([0.0, 0.3, 0.011, 0.006, 0.009])
+    assert collision_momentum_settled([0.0, 0.3, 0.03, -0.02, 0.01])      # the mean counts
+    assert collision_momentum_settled([math.nan] * 3)                     # not recorded
+
+    loop = CouplingLoop(small_case())
+    loop.gas = type("G", (), {"converged": True})()
+    h = loop.history
+    h.residual = [math.nan, 2.0, 1.2, 1.1, 1.0]
+    h.pressure_gradient = [60.0, 61.0, 61.0, 61.0, 61.0]
+    h.relaxation = [0.3] * 5
+    h.mass_balance = [0.0] * 5
+    h.collision_momentum = [0.0, 0.2, 0.005, 0.004, 0.006]
+    assert loop._converged_now()
+    h.collision_momentum = [0.0, 0.2, 0.13, 0.125, 0.122]
+    assert not loop._converged_now()
