@@ -424,14 +424,14 @@ def _why_not_converged(ds, case: Case) -> str:
     if not last < n.coupling_tolerance:
         return (f"coupling residual {last:.3g} > coupling_tolerance {n.coupling_tolerance:g} when "
                 f"max_passes = {n.max_passes} was reached")
-    from eulag.coupling import COLLISION_MOMENTUM_TOL, collision_momentum_settled
+    from eulag.coupling import COLLISION_MOMENTUM_TOL, collision_momentum_settled, recent_collision_momentum
 
     if "collision_momentum_history" in ds:
         cm = np.asarray(ds["collision_momentum_history"].values, dtype=float)
         early_cm = cm[: max(1, cm.size - n.average_passes)]
         if not collision_momentum_settled(early_cm):
-            return (f"collision momentum / inflow {np.nanmean(early_cm[-3:]):+.3g} (last passes) not below "
-                    f"{COLLISION_MOMENTUM_TOL:g} when max_passes = {n.max_passes} was reached")
+            return (f"collision momentum / inflow {recent_collision_momentum(early_cm):+.3g} (last passes) "
+                    f"not below {COLLISION_MOMENTUM_TOL:g} when max_passes = {n.max_passes} was reached")
     return (f"pressure gradient or mass balance still drifting when max_passes = {n.max_passes} "
             "was reached")
 
@@ -581,7 +581,9 @@ COLLISION_MOMENTUM_TEXT = (
     "gave the particles over their momentum inflow, mean of the final passes (real collisions "
     "conserve momentum; the fictitious partners do so only while the cell statistics they are drawn "
     "from match the particles, so this is the collision model's momentum error; — where the "
-    "dataset predates the record or the run failed)")
+    "dataset predates the record or the run failed); commit = the eulag commit that wrote the "
+    "run's dataset (a run reused with --resume may predate this invocation; — where the dataset "
+    "predates the record)")
 
 
 def _run_columns() -> list[Column]:
@@ -858,7 +860,7 @@ def study_tsuji_morikawa(args, outdir: Path, t_start: float) -> int:
         "(their noise reaches it through the sources). The digitising error of the measured points "
         "is about ±1-2 % of the reference velocity (file header). Point by point (u_x / U0 at each "
         "measured y/R, measured and simulated, with the particle standard error): "
-        "[tsuji-morikawa_points.csv](tsuji-morikawa_points.csv). Last column: "
+        "[tsuji-morikawa_points.csv](tsuji-morikawa_points.csv). Last two columns: "
         + COLLISION_MOMENTUM_TEXT + ".",
         "",
         "Provenance of the measurements (header of the file):", "", prov]
@@ -1433,10 +1435,10 @@ def _tracer_sink_text(specs, records) -> str:
         "2.2 that is some 20-27 times the gas's own dissipation rho eps, so the sinks all but remove "
         "the turbulence and, through the wall function, lower the wall shear: -dp/dx can fall below "
         "the single-phase value. Real 1 µm particles (tau_p = 3 µs, far below the Kolmogorov time "
-        "of ~0.1-1 ms here) follow the fluid down to the dissipative scales and add almost no "
+        "(nu/eps)^1/2, 0.2 ms in the wall cells of the converged base case) follow the fluid down to the dissipative scales and add almost no "
         "dissipation. The tracer run shows what the point-particle model with this dispersion model "
         "gives, not what 1 µm particles do.")
-    for (name, _, case), rec in zip(specs, records):
+    for (name, _, _), rec in zip(specs, records):
         if name != "tracers_1um" or not rec.ok or not rec.path.is_file():
             continue
         try:
