@@ -44,6 +44,7 @@ from __future__ import annotations
 import math
 import types
 import warnings
+import zlib
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -65,7 +66,7 @@ from .fields import F_DKX, F_EPS, F_K, F_UX, F_WX, NF, interpolate
 from .layout import (A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP,
                      B_RESIDENCE, B_WALL, B_WEIGHT, NBUD, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP,
-                     C_REBOUNDS, C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, CS_F, CS_N, CS_OK,
+                     C_REBOUNDS, C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK,
                      CS_RMS, CS_U, CS_WM, CS_WRMS, N_ANGLE_BINS, N_SPEED_BINS, NACC, NWALL,
                      P_DGAMMA, P_DP, P_GRAV, P_INJ_RMS, P_MAXSTEPS, P_MU, P_NDOT, P_RHO_F,
                      P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, S_EXITED, S_LOST,
@@ -389,6 +390,13 @@ def _with_globals(fn, **names):
     return new
 
 
+def tracker_variant(options):
+    """The number a kernel compiled for ``options`` writes into every batch's C_VARIANT counter
+    (CRC-32 of ``repr(options)``): the driver compares it, so a kernel for another option set —
+    served by a numba cache that concurrent processes corrupted — cannot go unnoticed."""
+    return float(zlib.crc32(repr(options).encode()))
+
+
 @lru_cache(maxsize=None)
 def make_tracker(options=PhysicsOptions()):
     """Build ``track_batch`` and ``track_superbatch`` for ``options`` (memoised).
@@ -420,6 +428,7 @@ def make_tracker(options=PhysicsOptions()):
     gravity = options.gravity
 
     key = repr(options)  # a closure cell: numba's cache key then differs per option set
+    variant = tracker_variant(options)  # written by every batch, checked by the driver
 
     def track_parcels(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                       x_centres, tab, axis, stats, prm, out, state, dvals, fvals, pos, vel, omega,
@@ -435,6 +444,7 @@ def make_tracker(options=PhysicsOptions()):
         off_speed = off_angle + N_ANGLE_BINS
         off_bud = off_speed + N_SPEED_BINS
         off_cnt = off_bud + NBUD
+        out[off_cnt + C_VARIANT] = variant
         rho_p = prm[P_RHO_P]
         d = prm[P_DP]
         r_p = 0.5 * d

@@ -63,7 +63,8 @@ C_SLIDING = 6
 C_ROLLING = 7
 C_PP = 8
 C_INLET = 9
-NCNT = 10
+C_VARIANT = 10  # the option set the kernel was compiled for (kernel.tracker_variant), per batch
+NCNT = 11
 
 # ---------------------------------------------------------------- cell statistics for collisions
 CS_N = 0  # number density [1/m3]

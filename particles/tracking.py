@@ -17,6 +17,9 @@ batch sums gives a standard error for each of them (``Sample.*_stderr``).
 from __future__ import annotations
 
 import math
+import os
+import tempfile
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,12 +28,12 @@ from collisions.interparticle import mean_collision_frequency
 from collisions.wall import minimum_bounce_speed
 
 from .fields import FieldTable
-from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker
+from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker, tracker_variant
 from .layout import (A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP, B_RESIDENCE,
                      B_WALL, B_WEIGHT, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP, C_REBOUNDS,
-                     C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, CS_F, CS_N, CS_OK, CS_RMS, CS_U,
-                     CS_WM, CS_WRMS, N_ANGLE_BINS, N_SPEED_BINS, NACC, NCS, NPRM, NWALL, P_DGAMMA,
+                     C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK, CS_RMS, CS_U,
+                     CS_WM, CS_WRMS, N_ANGLE_BINS, N_SPEED_BINS, NACC, NCNT, NCS, NPRM, NWALL, P_DGAMMA,
                      P_DP, P_GRAV, P_INJ_RMS, P_MAXSTEPS, P_MIN_VISITS, P_MU, P_NDOT, P_RHO_F,
                      P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, W_ANGLE, W_COUNT, W_SPEED,
                      Layout)
@@ -429,6 +432,40 @@ def prepare_pass(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, 
                       supers=tuple(supers), nt=nt, ncell=ncell, size=lay.size)
 
 
+_COMPILED = set()  # option sets whose kernels this process has compiled or loaded
+
+
+@contextmanager
+def _numba_cache_lock():
+    """Exclusive lock (all eulag processes of this user) while a tracking kernel is compiled or
+    loaded: numba's on-disk cache numbers its entries without locking, and two processes
+    compiling different option sets at once can leave an index entry pointing at the other
+    set's code (seen: a four-way pass served the kernel without collisions)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock; _check_variant still catches a wrong kernel
+        yield
+        return
+    path = os.path.join(tempfile.gettempdir(), f"eulag-numba-{os.getuid()}.lock")
+    with open(path, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _check_variant(totals, nbatches, physics):
+    got = totals[totals.size - NCNT + C_VARIANT]
+    want = tracker_variant(physics) * nbatches
+    if got != want:
+        raise RuntimeError(
+            "the particle kernel numba returned was compiled for other physics options (its "
+            "on-disk cache is corrupt, e.g. by processes compiling at the same time); delete the "
+            "*.nbi/*.nbc files under particles/__pycache__ and collisions/__pycache__ (or "
+            "NUMBA_CACHE_DIR) and run again")
+
+
 def run_superbatch(inputs, isb, keep_states=False):
     """Track super-batch ``isb`` of a pass: (totals, squares, cross[, states]) of its batches.
 
@@ -438,14 +475,25 @@ def run_superbatch(inputs, isb, keep_states=False):
     _, track_superbatch = make_tracker(inputs.physics)
     sl = inputs.supers[isb]
     table = inputs.table
-    t_s = np.zeros(inputs.size)
-    q_s = np.zeros(inputs.size)
-    c_s = np.zeros(inputs.ncell * NACC)
-    st_s = np.empty((int(inputs.counts[sl].sum()), NSTATE))
-    track_superbatch(inputs.starts[sl], inputs.counts[sl], inputs.seed, inputs.pass_index,
-                     table.x_edges, table.r_edges, table.r_centres, inputs.nt, table.length,
-                     table.radius, table.nu, table.x_centres, table.values, table.axis, inputs.stats,
-                     inputs.prm, t_s, q_s, c_s, inputs.ncell, st_s)
+
+    def call(starts, counts):
+        t_s = np.zeros(inputs.size)
+        q_s = np.zeros(inputs.size)
+        c_s = np.zeros(inputs.ncell * NACC)
+        st_s = np.empty((int(counts.sum()), NSTATE))
+        track_superbatch(starts, counts, inputs.seed, inputs.pass_index,
+                         table.x_edges, table.r_edges, table.r_centres, inputs.nt, table.length,
+                         table.radius, table.nu, table.x_centres, table.values, table.axis, inputs.stats,
+                         inputs.prm, t_s, q_s, c_s, inputs.ncell, st_s)
+        _check_variant(t_s, len(counts), inputs.physics)
+        return t_s, q_s, c_s, st_s
+
+    if inputs.physics not in _COMPILED:
+        # compile (or load from numba's cache) on one empty batch, one process at a time
+        with _numba_cache_lock():
+            call(inputs.starts[sl][:1].copy(), np.zeros(1, dtype=inputs.counts.dtype))
+        _COMPILED.add(inputs.physics)
+    t_s, q_s, c_s, st_s = call(inputs.starts[sl], inputs.counts[sl])
     if keep_states:
         return t_s, q_s, c_s, st_s
     return t_s, q_s, c_s

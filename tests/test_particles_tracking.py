@@ -197,3 +197,19 @@ def test_residence_cap_stops_and_counts_parcels():
     assert s.counts["stuck"] == 200 and s.counts["lost"] == 0
     b = s.budget
     assert b["mass_stuck"] == pytest.approx(b["mass_in"], rel=1e-13)
+
+
+def test_a_kernel_compiled_for_other_options_is_refused(monkeypatch):
+    """numba's on-disk cache, written by two processes at once, once served a four-way pass the
+    kernel without collisions (same results as two-way, no error).  Every batch now reports the
+    option set it was compiled for, and the driver refuses a mismatch."""
+    import particles.tracking as tr
+
+    mesh, gas = periodic_pipe()
+    two_way = PhysicsOptions(inter_particle_collisions=False)
+    inputs = tr.prepare_pass(mesh, gas, BASE, two_way, parcels=20, seed=1)
+    tr.run_superbatch(inputs, 0)  # the right kernel passes
+    other = tr.make_tracker(PhysicsOptions(inter_particle_collisions=False, magnus_lift=False))
+    monkeypatch.setattr(tr, "make_tracker", lambda options: other)
+    with pytest.raises(RuntimeError, match="compiled for other physics options"):
+        tr.run_superbatch(inputs, 0)
