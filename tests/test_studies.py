@@ -146,7 +146,7 @@ SCENE_TABLE = {  # the issue's table: D_p [um], Delta-gamma [deg], coupling, loa
 
 
 def test_scene_case_files_match_the_issue_table():
-    base = Case.from_toml(BASE)
+    base = studies._base_case(False)  # the base case at the studies' resolution
     for s, (dp, dg, coupling, f) in SCENE_TABLE.items():
         case = Case.from_toml(CASES_DIR / "scenes" / f"scene_{s}.toml")
         assert case.name == f"scene_{s}"
@@ -193,7 +193,7 @@ def test_scenes_quick_all_eight(tmp_path):
 # ------------------------------------------------------------------------------ error-runtime
 
 def test_error_runtime_plan_covers_the_axes_of_the_issue():
-    case = Case.from_toml(BASE)
+    case = studies._base_case(False, BASE)  # at the studies' resolution, not the file's default
     for quick in (False, True):
         runs, ref = studies.error_runtime_plan(case, quick)
         settings = runs + [ref]
@@ -246,7 +246,7 @@ def test_stability_cases_cover_the_issue_list():
     cases = {name: case for name, _, case in specs}
     assert cases["pipe_0.3m_Re1e6"].reynolds_number == pytest.approx(1e6)
     assert cases["parcels_1e6"].numerics.parcels == 1_000_000
-    n0, n4 = Case.from_toml(BASE).numerics, cases["cells_4x"].numerics
+    n0, n4 = studies._base_case(False).numerics, cases["cells_4x"].numerics
     assert (n4.axial_cells * n4.radial_cells * n4.azimuthal_cells
             == 4 * n0.axial_cells * n0.radial_cells * n0.azimuthal_cells)
 
