@@ -596,8 +596,14 @@ class CouplingLoop:
 def _relax_statistics(old, new, alpha):
     """Collision statistics blended like the sources: (1 − α) old + α new per cell, the rms
     columns through their variances; a cell sampled in only one of them keeps that one's row.
-    The collision frequency is blended linearly (it is close to linear in n and σ)."""
-    from particles.layout import CS_OK, CS_RMS, CS_WRMS
+    The collision frequency is blended linearly (it is close to linear in n and σ).
+
+    The mean velocity and spin are the newest pass's, not blended: blending damps the
+    dense/sparse alternation of the number density (README "Coupling" 4), but the means do
+    not alternate — they approach the particles' own by only 1/(1 + f τ_p) of the gap per
+    pass, and blending slowed that by α more, while the partners drawn about stale means
+    inject momentum (README "Coupling" 6)."""
+    from particles.layout import CS_OK, CS_RMS, CS_U, CS_WM, CS_WRMS
 
     both = (old[:, CS_OK] > 0) & (new[:, CS_OK] > 0)
     out = np.where((new[:, CS_OK] > 0)[:, None], new, old)
@@ -605,6 +611,8 @@ def _relax_statistics(old, new, alpha):
     for c0 in (CS_RMS, CS_WRMS):
         sl = slice(c0, c0 + 3)
         blend[:, sl] = np.sqrt((1.0 - alpha) * old[both, sl] ** 2 + alpha * new[both, sl] ** 2)
+    for c0 in (CS_U, CS_WM):
+        blend[:, c0:c0 + 3] = new[both, c0:c0 + 3]
     blend[:, CS_OK] = 1.0
     out[both] = blend
     return out
