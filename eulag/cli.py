@@ -376,11 +376,23 @@ def _coupled_summary(case, loop, ds, out) -> str:
         f"{float(ds.solids_pressure_drop_ratio):.4g}, lambda_Z {float(ds.additional_pressure_loss_coefficient):.4g}",
         f"  secondary    {strength}",
         f"  parcels      {int(h.parcels[-1])} per final pass; lost {int(sum(h.lost))}, stuck {int(sum(h.stuck))}",
+        *_collision_momentum_line(case, h),
         f"  wall time    gas {t.get('gas_solve', 0):.1f} s, Lagrangian {t.get('lagrangian', 0):.1f} s, "
         f"checkpoints {t.get('checkpoint', 0):.1f} s, total {t.get('total', 0):.1f} s",
         f"  written      {out}",
     ]
     return "\n".join(lines)
+
+
+def _collision_momentum_line(case, h) -> list[str]:
+    """The net momentum the stochastic collisions gave the particles (real pairs give none)."""
+    from eulag.coupling import recent_collision_momentum
+
+    cm = recent_collision_momentum(h.collision_momentum)
+    if not case.physics.inter_particle_collisions or not math.isfinite(cm):
+        return []
+    return [f"  collisions   net momentum {100 * cm:+.2g} % of the particle inflow (final passes; real "
+            "collision pairs give none, README \"Coupling\" 6)"]
 
 
 def _final(field) -> float:

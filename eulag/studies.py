@@ -424,14 +424,16 @@ def _why_not_converged(ds, case: Case) -> str:
     if not last < n.coupling_tolerance:
         return (f"coupling residual {last:.3g} > coupling_tolerance {n.coupling_tolerance:g} when "
                 f"max_passes = {n.max_passes} was reached")
-    from eulag.coupling import COLLISION_MOMENTUM_TOL, collision_momentum_settled, recent_collision_momentum
+    from eulag.coupling import (COLLISION_MOMENTUM_TOL, collision_momentum_settled, collision_momentum_to_come,
+                                recent_collision_momentum)
 
     if "collision_momentum_history" in ds:
         cm = np.asarray(ds["collision_momentum_history"].values, dtype=float)
         early_cm = cm[: max(1, cm.size - n.average_passes)]
         if not collision_momentum_settled(early_cm):
             return (f"collision momentum / inflow {recent_collision_momentum(early_cm):+.3g} (last passes) "
-                    f"not below {COLLISION_MOMENTUM_TOL:g} when max_passes = {n.max_passes} was reached")
+                    f"still changing ({collision_momentum_to_come(early_cm):.2g} to come, tolerance "
+                    f"{COLLISION_MOMENTUM_TOL:g}) when max_passes = {n.max_passes} was reached")
     return (f"pressure gradient or mass balance still drifting when max_passes = {n.max_passes} "
             "was reached")
 

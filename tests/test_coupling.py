@@ -299,13 +299,19 @@ def test_k_sink_of_small_particles_matches_the_langevin_two_fluid_result(diamete
 
 
 def test_convergence_waits_for_the_collision_momentum_to_settle():
-    """Sources and pressure gradient settled, but the fictitious partners still inject 12 % of
-    the particle momentum inflow (eta = 10 at 'convergence' before this check): not converged."""
+    """Sources and pressure gradient settled, but the fictitious partners' momentum still
+    changing by 0.5 % of the particle inflow per pass (eta = 10 at 'convergence' before this
+    check): not converged.  A steady level is the model's and is reported, not waited for."""
     from eulag.coupling import collision_momentum_settled
 
-    assert not collision_momentum_settled([0.0, 0.3, 0.13, 0.125, 0.122])
-    assert collision_momentum_settled([0.0, 0.3, 0.011, 0.006, 0.009])
-    assert collision_momentum_settled([0.0, 0.3, 0.03, -0.02, 0.01])      # the mean counts
+    # still decaying by 1-3 % of the inflow per pass (eta = 10, frozen gas: 0.28, 0.25, ...)
+    assert not collision_momentum_settled([0.0, 0.3, 0.28, 0.25, 0.23, 0.21, 0.19])
+    assert not collision_momentum_settled([0.0, 0.3, 0.13, 0.125, 0.12, 0.115, 0.11])
+    # a steady level with pass-to-pass noise (the 200x10x20 base case: -0.033 to -0.038)
+    assert collision_momentum_settled([0.0, 0.1, -0.033, -0.034, -0.0339, -0.0347, -0.0354, -0.0339])
+    assert collision_momentum_settled([0.0, 0.2, 0.011, 0.006, 0.009, 0.007, 0.010, 0.008])
+    assert collision_momentum_settled([0.0] * 8)                          # two-way: no collisions
+    assert not collision_momentum_settled([0.0, 0.01, 0.01])              # too few passes to judge
     assert collision_momentum_settled([math.nan] * 3)                     # not recorded
 
     loop = CouplingLoop(small_case())
@@ -315,7 +321,7 @@ def test_convergence_waits_for_the_collision_momentum_to_settle():
     h.pressure_gradient = [60.0, 61.0, 61.0, 61.0, 61.0]
     h.relaxation = [0.3] * 5
     h.mass_balance = [0.0] * 5
-    h.collision_momentum = [0.0, 0.2, 0.005, 0.004, 0.006]
+    h.collision_momentum = [0.0, 0.2, 0.005, 0.004, 0.006, 0.005, 0.004, 0.005]
     assert loop._converged_now()
-    h.collision_momentum = [0.0, 0.2, 0.13, 0.125, 0.122]
+    h.collision_momentum = [0.0, 0.2, 0.14, 0.135, 0.13, 0.125, 0.12, 0.115]
     assert not loop._converged_now()
