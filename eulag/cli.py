@@ -386,13 +386,15 @@ def _coupled_summary(case, loop, ds, out) -> str:
 
 def _collision_momentum_line(case, h) -> list[str]:
     """The net momentum the stochastic collisions gave the particles (real pairs give none)."""
-    from eulag.coupling import recent_collision_momentum
+    from eulag.coupling import COLLISION_MOMENTUM_TOL, recent_collision_momentum
 
     cm = recent_collision_momentum(h.collision_momentum)
     if not case.physics.inter_particle_collisions or not math.isfinite(cm):
         return []
+    flag = (f"; WARNING: more than {100 * COLLISION_MOMENTUM_TOL:g} %" if abs(cm) >= COLLISION_MOMENTUM_TOL
+            else "")
     return [f"  collisions   net momentum {100 * cm:+.2g} % of the particle inflow (final passes; real "
-            "collision pairs give none, README \"Coupling\" 6)"]
+            f"collision pairs give none, README \"Coupling\" 6{flag})"]
 
 
 def _final(field) -> float:

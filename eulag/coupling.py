@@ -13,9 +13,10 @@ Cycle (the reference paper's):
    (α = ``numerics.relaxation``; halved automatically, down to 0.05, if a gas solve fails or
    if the residual stagnates above the tolerance, see below), and a Lagrangian pass in the new
    gas field with the cell statistics of the earlier passes.  The cell statistics the
-   inter-particle collisions use (number density, velocity moments, collision frequency) are
-   relaxed with ``numerics.relaxation`` (not with a lowered α; those of the collision-free first
-   pass are replaced, not blended, by the second pass's): statistics taken from one pass
+   inter-particle collisions use (number density, rms velocity and spin, collision frequency)
+   are relaxed with ``numerics.relaxation`` (not with a lowered α; the mean velocity and spin
+   are the newest pass's; those of the collision-free first pass are replaced, not blended, by
+   the second pass's): statistics taken from one pass
    alone feed back with a negative gain (dense cell → many collisions → the particles spread →
    few collisions next pass …), which for 50 µm particles at η = 2.2 made the loop oscillate
    between two states; statistics relaxed with a lowered α stay stale and inject momentum
@@ -100,8 +101,9 @@ def collision_momentum_to_come(history) -> float:
     """The change of the collisions' net momentum / inflow still to come: |least-squares trend
     per pass over the last COLLISION_MOMENTUM_PASSES recorded passes| × COLLISION_MOMENTUM_AHEAD;
     inf while fewer passes are recorded, 0 when none is (passes resumed from an older
-    checkpoint)."""
-    v = np.asarray(history, dtype=float)
+    checkpoint).  The first two passes do not count: the first has no collisions and the second
+    draws its partners from the first's statistics."""
+    v = np.asarray(history[2:], dtype=float)
     v = v[np.isfinite(v)]
     if v.size == 0:
         return 0.0
@@ -593,7 +595,15 @@ class CouplingLoop:
             self.sources = {k[4:]: data[k] for k in data if k.startswith("src_")}
         self.stats = data.get("stats")
         if "window_0" in data:
+            from particles.layout import Layout
+
             self.window = [data["window_0"].copy(), data["window_1"].copy(), data["window_2"].copy()]
+            nx, nr, nt = self.mesh.shape
+            size = Layout(nx * nr * nt, nx * nt).size
+            if self.window[0].size != size:
+                raise CouplingError(f"{self.checkpoint}: its averaged passes hold {self.window[0].size} "
+                                    f"values per pass, this eulag's tracker writes {size} (a checkpoint "
+                                    "of an older version); remove it or run without --resume")
         done = data["hist_residual"].size
         for k in self.history.__dict__:  # a record added since the checkpoint: NaN for its passes
             getattr(self.history, k).extend(data.get(f"hist_{k}", np.full(done, np.nan)).tolist())

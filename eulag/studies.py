@@ -639,8 +639,10 @@ STUDY_NUMERICS = {"axial_cells": 400, "radial_cells": 20, "azimuthal_cells": 40,
 
 
 def _base_case(quick: bool, path: Path = BASE_CASE) -> Case:
+    """The case at ``path``; the base case (by content: any copy of its file) at the studies'
+    resolution STUDY_NUMERICS; quick mode on the quick numerics."""
     case = Case.from_toml(path)
-    if Path(path).resolve() == BASE_CASE.resolve():
+    if case == Case.from_toml(BASE_CASE):
         case = case.replace(numerics=STUDY_NUMERICS)
     return _quick(case) if quick else case
 
@@ -1179,7 +1181,7 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
         r = cand[best]
         pareto_lines += ["", f"Best by the stated criterion (smallest error x run time on the front): "
                              f"`{r['run']}` ({r['grid']} cells, {r['parcels']} parcels, step {r['step_rule']} "
-                             f"x {r['step_factor']:g}). " + _default_verdict(own, r)]
+                             f"x {r['step_factor']:g})." + ("" if args.quick else " " + _default_verdict(own, r))]
     n_ref = _setting_case(case, ref, args.quick).numerics
     intro = [
         f"Case `{args.case}`: error of the section profiles at x = {x:g} m against the reference run "
@@ -1189,7 +1191,11 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
         f"parcels, step {ref.step_rule} x {ref.step_factor:g}, seed {n_ref.seed} so that its noise is "
         "independent of the other runs') and against the measurements, as a function of the run's "
         "wall time. One axis is varied at a time around the centre setting (`centre`): the grid, the "
-        "parcels per pass, the particle time-step factor and the step rule (default / the paper's).",
+        "parcels per pass, the particle time-step factor and the step rule (default / the paper's)."
+        + (f" The axes are built around the studies' resolution of the base case "
+           f"({case.numerics.axial_cells}x{case.numerics.radial_cells}x{case.numerics.azimuthal_cells} cells, "
+           "`eulag.studies.STUDY_NUMERICS`), not the case file's own default."
+           if case.numerics != own.numerics and not args.quick else ""),
         "",
         f"Profiles: along the vertical diameter at {ER_POINTS.size} points y/R in [-0.95, 0.95] "
         "(linear interpolation): gas and particle axial velocity / U0, particle concentration / its "

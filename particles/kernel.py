@@ -392,8 +392,9 @@ def _with_globals(fn, **names):
 
 def tracker_variant(options):
     """The number a kernel compiled for ``options`` writes into every batch's C_VARIANT counter
-    (CRC-32 of ``repr(options)``): the driver compares it, so a kernel for another option set —
-    served by a numba cache that concurrent processes corrupted — cannot go unnoticed."""
+    (CRC-32 of ``repr(options)``; ``track_superbatch.eulag_variant``): the driver compares it, so
+    a kernel for another option set — served by a numba cache that concurrent processes
+    corrupted — cannot go unnoticed."""
     return float(zlib.crc32(repr(options).encode()))
 
 
@@ -821,4 +822,7 @@ def make_tracker(options=PhysicsOptions()):
 
     track_superbatch = njit(parallel=True, cache=True)(
         _with_globals(track_superbatch, _TRACK_BATCH=track_batch))
+    # what the compiled code must report (options equal to these reuse this memoised pair,
+    # though their repr may differ: 1.0 against np.float64(1.0))
+    track_superbatch.eulag_variant = variant
     return track_batch, track_superbatch

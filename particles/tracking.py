@@ -17,9 +17,6 @@ batch sums gives a standard error for each of them (``Sample.*_stderr``).
 from __future__ import annotations
 
 import math
-import os
-import tempfile
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,7 +25,7 @@ from collisions.interparticle import mean_collision_frequency
 from collisions.wall import minimum_bounce_speed
 
 from .fields import FieldTable
-from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker, tracker_variant
+from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker
 from .layout import (A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP, B_RESIDENCE,
                      B_WALL, B_WEIGHT, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP, C_REBOUNDS,
@@ -432,32 +429,10 @@ def prepare_pass(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, 
                       supers=tuple(supers), nt=nt, ncell=ncell, size=lay.size)
 
 
-_COMPILED = set()  # option sets whose kernels this process has compiled or loaded
-
-
-@contextmanager
-def _numba_cache_lock():
-    """Exclusive lock (all eulag processes of this user) while a tracking kernel is compiled or
-    loaded: numba's on-disk cache numbers its entries without locking, and two processes
-    compiling different option sets at once can leave an index entry pointing at the other
-    set's code (seen: a four-way pass served the kernel without collisions)."""
-    try:
-        import fcntl
-    except ImportError:  # not POSIX: no lock; _check_variant still catches a wrong kernel
-        yield
-        return
-    path = os.path.join(tempfile.gettempdir(), f"eulag-numba-{os.getuid()}.lock")
-    with open(path, "a") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
-
-
-def _check_variant(totals, nbatches, physics):
+def _check_variant(totals, nbatches, variant):
+    """Refuse the results of a kernel compiled for other physics options (collisions.conf)."""
     got = totals[totals.size - NCNT + C_VARIANT]
-    want = tracker_variant(physics) * nbatches
+    want = variant * nbatches
     if got != want:
         raise RuntimeError(
             "the particle kernel numba returned was compiled for other physics options (its "
@@ -475,25 +450,15 @@ def run_superbatch(inputs, isb, keep_states=False):
     _, track_superbatch = make_tracker(inputs.physics)
     sl = inputs.supers[isb]
     table = inputs.table
-
-    def call(starts, counts):
-        t_s = np.zeros(inputs.size)
-        q_s = np.zeros(inputs.size)
-        c_s = np.zeros(inputs.ncell * NACC)
-        st_s = np.empty((int(counts.sum()), NSTATE))
-        track_superbatch(starts, counts, inputs.seed, inputs.pass_index,
-                         table.x_edges, table.r_edges, table.r_centres, inputs.nt, table.length,
-                         table.radius, table.nu, table.x_centres, table.values, table.axis, inputs.stats,
-                         inputs.prm, t_s, q_s, c_s, inputs.ncell, st_s)
-        _check_variant(t_s, len(counts), inputs.physics)
-        return t_s, q_s, c_s, st_s
-
-    if inputs.physics not in _COMPILED:
-        # compile (or load from numba's cache) on one empty batch, one process at a time
-        with _numba_cache_lock():
-            call(inputs.starts[sl][:1].copy(), np.zeros(1, dtype=inputs.counts.dtype))
-        _COMPILED.add(inputs.physics)
-    t_s, q_s, c_s, st_s = call(inputs.starts[sl], inputs.counts[sl])
+    t_s = np.zeros(inputs.size)
+    q_s = np.zeros(inputs.size)
+    c_s = np.zeros(inputs.ncell * NACC)
+    st_s = np.empty((int(inputs.counts[sl].sum()), NSTATE))
+    track_superbatch(inputs.starts[sl], inputs.counts[sl], inputs.seed, inputs.pass_index,
+                     table.x_edges, table.r_edges, table.r_centres, inputs.nt, table.length,
+                     table.radius, table.nu, table.x_centres, table.values, table.axis, inputs.stats,
+                     inputs.prm, t_s, q_s, c_s, inputs.ncell, st_s)
+    _check_variant(t_s, len(inputs.counts[sl]), track_superbatch.eulag_variant)
     if keep_states:
         return t_s, q_s, c_s, st_s
     return t_s, q_s, c_s

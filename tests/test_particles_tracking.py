@@ -209,7 +209,49 @@ def test_a_kernel_compiled_for_other_options_is_refused(monkeypatch):
     two_way = PhysicsOptions(inter_particle_collisions=False)
     inputs = tr.prepare_pass(mesh, gas, BASE, two_way, parcels=20, seed=1)
     tr.run_superbatch(inputs, 0)  # the right kernel passes
-    other = tr.make_tracker(PhysicsOptions(inter_particle_collisions=False, magnus_lift=False))
-    monkeypatch.setattr(tr, "make_tracker", lambda options: other)
+    right = tr.make_tracker(two_way)[1]
+    other = tr.make_tracker(PhysicsOptions(inter_particle_collisions=False, magnus_lift=False))[1]
+
+    class CorruptEntry:  # another option set's code, filed under this one's key
+        eulag_variant = right.eulag_variant
+
+        def __call__(self, *args):
+            return other(*args)
+
+    monkeypatch.setattr(tr, "make_tracker", lambda options: (None, CorruptEntry()))
     with pytest.raises(RuntimeError, match="compiled for other physics options"):
         tr.run_superbatch(inputs, 0)
+
+
+def test_numba_cache_entries_written_at_once_keep_their_own_data(tmp_path, monkeypatch):
+    """Two writers of one numba cache index (two processes compiling two variants of a kernel)
+    must not end with one key pointing at the other's data: collisions.conf serialises them."""
+    import threading
+    import time
+
+    import collisions.conf  # noqa: F401 - installs the lock
+    from numba.core import caching
+
+    cls = caching.IndexDataCacheFile
+    assert cls._eulag_serialised
+    real_load = cls._load_index
+
+    def slow_load(self):  # widen the read-modify-write window of save()
+        out = real_load(self)
+        time.sleep(0.2)
+        return out
+
+    monkeypatch.setattr(cls, "_load_index", slow_load)
+    stamp = (1.0, 1)
+
+    def write(key):
+        cls(str(tmp_path), "kernel", stamp).save(key, f"code of {key}")
+
+    threads = [threading.Thread(target=write, args=(k,)) for k in ("with collisions", "without")]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    reader = cls(str(tmp_path), "kernel", stamp)
+    assert reader.load("with collisions") == "code of with collisions"
+    assert reader.load("without") == "code of without"

@@ -210,6 +210,19 @@ def test_error_runtime_plan_covers_the_axes_of_the_issue():
             assert ref.grid == (400, 20, 40)
 
 
+def test_the_base_case_runs_at_the_study_resolution_wherever_its_file_lies(tmp_path):
+    copy = tmp_path / "copy.toml"
+    copy.write_text(BASE.read_text())
+    n = studies._base_case(False, copy).numerics
+    assert (n.axial_cells, n.radial_cells, n.azimuthal_cells, n.parcels) == (400, 20, 40, 240_000)
+    own = Case.from_toml(BASE).numerics  # the file's default: error-runtime's Pareto-best
+    assert (own.axial_cells, own.radial_cells, own.azimuthal_cells, own.parcels) == (200, 10, 20, 30_000)
+    # a case with numerics of its own keeps them
+    changed = tmp_path / "changed.toml"
+    changed.write_text(BASE.read_text().replace("axial_cells = 200", "axial_cells = 160"))
+    assert studies._base_case(False, changed).numerics.axial_cells == 160
+
+
 def test_error_runtime_quick(tmp_path):
     assert study("error-runtime", BASE, "--quick", "--quiet", "-o", tmp_path) == 0
     table = check_report(tmp_path, "error-runtime", 9)
