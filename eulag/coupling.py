@@ -15,8 +15,8 @@ Cycle (the reference paper's):
    gas field with the cell statistics of the earlier passes.  The cell statistics the
    inter-particle collisions use (number density, rms velocity and spin, collision frequency)
    are relaxed with ``numerics.relaxation`` (not with a lowered α; the mean velocity and spin
-   are the newest pass's; those of the collision-free first pass are replaced, not blended, by
-   the second pass's): statistics taken from one pass
+   with weight at least STATISTICS_MEAN_WEIGHT = 0.5; those of the collision-free first pass
+   are replaced, not blended, by the second pass's): statistics taken from one pass
    alone feed back with a negative gain (dense cell → many collisions → the particles spread →
    few collisions next pass …), which for 50 µm particles at η = 2.2 made the loop oscillate
    between two states; statistics relaxed with a lowered α stay stale and inject momentum
@@ -85,6 +85,9 @@ _INTEGRAL_PASSES = 3
 #: f_coll τ_p ≤ 9).  Numerical choices of ours, not model constants.  The level itself need
 #: not vanish (README "Coupling", item 6) and is reported, not required to be small.
 COLLISION_MOMENTUM_TOL = 0.02
+#: Weight of the newest pass in the collision statistics' mean velocity and spin (at least;
+#: the rest of the statistics take the case's α): a numerical choice (README "Coupling" 6).
+STATISTICS_MEAN_WEIGHT = 0.5
 COLLISION_MOMENTUM_PASSES = 6
 COLLISION_MOMENTUM_AHEAD = 10.0
 
@@ -629,11 +632,10 @@ def _relax_statistics(old, new, alpha):
     columns through their variances; a cell sampled in only one of them keeps that one's row.
     The collision frequency is blended linearly (it is close to linear in n and σ).
 
-    The mean velocity and spin are the newest pass's, not blended: blending damps the
-    dense/sparse alternation of the number density (README "Coupling" 4), but the means do
-    not alternate — they approach the particles' own by only 1/(1 + f τ_p) of the gap per
-    pass, and blending slowed that by α more, while the partners drawn about stale means
-    inject momentum (README "Coupling" 6)."""
+    The mean velocity and spin take the newest pass with weight max(α, STATISTICS_MEAN_WEIGHT):
+    they approach the particles' own by only 1/(1 + f τ_p) of the gap per pass, blending at α
+    slowed that further while the partners drawn about stale means inject momentum, but taken
+    unblended they joined the dense/sparse alternation of 50 µm scene e (README "Coupling" 6)."""
     from particles.layout import CS_OK, CS_RMS, CS_U, CS_WM, CS_WRMS
 
     both = (old[:, CS_OK] > 0) & (new[:, CS_OK] > 0)
@@ -642,8 +644,9 @@ def _relax_statistics(old, new, alpha):
     for c0 in (CS_RMS, CS_WRMS):
         sl = slice(c0, c0 + 3)
         blend[:, sl] = np.sqrt((1.0 - alpha) * old[both, sl] ** 2 + alpha * new[both, sl] ** 2)
+    w = max(alpha, STATISTICS_MEAN_WEIGHT)
     for c0 in (CS_U, CS_WM):
-        blend[:, c0:c0 + 3] = new[both, c0:c0 + 3]
+        blend[:, c0:c0 + 3] = (1.0 - w) * old[both, c0:c0 + 3] + w * new[both, c0:c0 + 3]
     blend[:, CS_OK] = 1.0
     out[both] = blend
     return out

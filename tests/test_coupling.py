@@ -173,7 +173,7 @@ def PipeMesh_from(case):
 
 def test_collision_statistics_are_relaxed_like_the_sources():
     from eulag.coupling import _relax_statistics
-    from particles.layout import CS_N, CS_OK, CS_RMS, CS_U, NCS
+    from particles.layout import CS_N, CS_OK, CS_RMS, CS_U, CS_WM, NCS
 
     old = np.zeros((3, NCS))
     new = np.zeros((3, NCS))
@@ -182,11 +182,13 @@ def test_collision_statistics_are_relaxed_like_the_sources():
     old[:, CS_N], new[:, CS_N] = [1e9, 2e9, 0], [3e9, 0, 5e9]
     old[:, CS_U], new[:, CS_U] = [10.0, 9.0, 0], [12.0, 0, 8.0]
     old[:, CS_RMS], new[:, CS_RMS] = [0.3, 0.2, 0], [0.4, 0, 0.5]
+    old[:, CS_WM + 2], new[:, CS_WM + 2] = [100.0, 50.0, 0], [300.0, 0, 20.0]
     out = _relax_statistics(old, new, 0.25)
-    # sampled in both: the 0.75/0.25 blend, rms through the variances; the mean velocity
-    # (and spin) the newest pass's: it does not alternate, and blending it slows its approach
+    # sampled in both: the 0.75/0.25 blend, rms through the variances; the mean velocity (and
+    # spin) with weight 0.5 at least: blended at α its approach to the particles is too slow
     assert out[0, CS_N] == pytest.approx(0.75e9 + 0.75e9)
-    assert out[0, CS_U] == 12.0
+    assert out[0, CS_U] == pytest.approx(0.5 * 10 + 0.5 * 12)
+    assert out[0, CS_WM + 2] == pytest.approx(0.5 * 100 + 0.5 * 300)
     assert out[0, CS_RMS] == pytest.approx(np.sqrt(0.75 * 0.09 + 0.25 * 0.16))
     # sampled once: that sample's row, flagged usable
     np.testing.assert_array_equal(out[1], old[1])
