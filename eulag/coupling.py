@@ -42,8 +42,8 @@ and, over the last three passes, the section-mean pressure gradient changed so l
 the drift still to come of the relaxed iteration (least-squares change per pass over the last
 four values × (1 − α)/α) is below 1 %
 and the particle mass balance (in = out + stuck) closes within 1 %, and the net momentum the
-stochastic inter-particle collisions gave the particles is below 2 % of their momentum inflow
-(its change still to come, from its trend; ``collision_momentum_settled``).  Then ``average_passes``
+stochastic inter-particle collisions gave the particles has settled (its change still to come,
+from its trend, below 2 % of their momentum inflow; ``collision_momentum_settled``).  Then ``average_passes``
 final passes with ``numerics.parcels`` parcels give the reported statistics (their average);
 the earlier passes use ``numerics.parcels_start``.  One-way coupling solves the gas once and
 runs the final passes only.
@@ -85,11 +85,11 @@ _INTEGRAL_PASSES = 3
 #: f_coll τ_p ≤ 9).  Numerical choices of ours, not model constants.  The level itself need
 #: not vanish (README "Coupling", item 6) and is reported, not required to be small.
 COLLISION_MOMENTUM_TOL = 0.02
+COLLISION_MOMENTUM_PASSES = 6
+COLLISION_MOMENTUM_AHEAD = 10.0
 #: Weight of the newest pass in the collision statistics' mean velocity and spin (at least;
 #: the rest of the statistics take the case's α): a numerical choice (README "Coupling" 6).
 STATISTICS_MEAN_WEIGHT = 0.5
-COLLISION_MOMENTUM_PASSES = 6
-COLLISION_MOMENTUM_AHEAD = 10.0
 
 
 def recent_collision_momentum(history) -> float:
