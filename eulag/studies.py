@@ -14,6 +14,11 @@ stated in it) and its figures (PNG). Nothing in these files is edited by hand.
   again, an interrupted run continues from its checkpoint (``<run>.nc.checkpoint``), and a
   run that failed before is reported from its ``<run>.failed.json`` record. Without
   ``--resume`` every run starts afresh.
+* Run records: what a study takes from a finished run's dataset (its table row, the data of
+  the study's figures) is also written to ``<run>.record.json`` beside it. The datasets are
+  too large to commit (70-90 MB); the records are committed with the tables, so that
+  ``--resume`` on another machine reports a finished run from its record when its dataset
+  is not there, instead of running it again (the record names the commit that ran it).
 * ``--parcels N``: parcels per final pass of every run (a lighter full-mode study; not in
   error-runtime, where the parcel count is an axis). ``--only``: a subset of scenes / cases.
 * ``--quick``: every run on a tiny grid with a few hundred parcels and two passes, so that
@@ -286,6 +291,7 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
     resume = bool(getattr(args, "resume", False))
     ds = None
     reused = False
+    record = outdir / f"{name}.record.json"
     if resume and out.is_file():
         try:
             opened = _open(out)
@@ -295,6 +301,12 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             ds = opened
             reused = True
             _log(args, f"  {label}: {out} exists (same case), not run again")
+    if ds is None and resume and not out.is_file():
+        kept = read_record(record, case)
+        if kept is not None:
+            _log(args, f"  {label}: reported from its record {record} (its dataset is not here; run "
+                       f"at commit {kept.metrics.get('commit') or 'unknown'}), not run again")
+            return kept
     if ds is None and resume and failed.is_file():
         try:
             info = json.loads(failed.read_text())
@@ -356,8 +368,75 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
     rec.reused = reused
     if extract is not None:
         rec.metrics.update(extract(ds, rec))
+    write_record(record, case, rec)
     _log(args, f"  {label}: {rec.status} after {rec.passes} passes, {rec.time:.1f} s")
     return rec
+
+
+RECORD_VERSION = 1
+
+
+def _to_json(v):
+    """``v`` with numpy arrays and scalars made JSON-serialisable (arrays tagged, so that
+    :func:`_from_json` gives them back as arrays)."""
+    if isinstance(v, dict):
+        return {str(k): _to_json(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_to_json(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return {"__ndarray__": _to_json(v.tolist()), "dtype": str(v.dtype)}
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, Path):
+        return str(v)
+    return v
+
+
+def _from_json(v):
+    if isinstance(v, dict):
+        if "__ndarray__" in v:
+            return np.asarray(v["__ndarray__"], dtype=v.get("dtype", "float64"))
+        return {k: _from_json(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_from_json(x) for x in v]
+    return v
+
+
+def write_record(path: Path, case: Case, rec: RunRecord) -> Path:
+    """Write ``<run>.record.json``: the run record of a finished run, with what the study
+    extracted from its dataset (figure paths relative to the record's folder)."""
+    from eulag.output import atomic_write
+
+    metrics = dict(rec.metrics)
+    if "figures" in metrics:
+        metrics["figures"] = [os.path.relpath(f, path.parent) for f in metrics["figures"]]
+    data = {"version": RECORD_VERSION, "case": _canonical(case), "name": rec.name, "status": rec.status,
+            "message": rec.message, "time": rec.time, "passes": rec.passes, "residual": rec.residual,
+            "relaxation": rec.relaxation, "dataset": path.name.replace(".record.json", ".nc"),
+            "written_by": eulag.__version__, "metrics": _to_json(metrics)}
+    text = json.dumps(data, indent=1, default=str)
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+
+
+def read_record(path: Path, case: Case) -> RunRecord | None:
+    """The run record at ``path`` when it belongs to ``case`` (None: absent, unreadable, of
+    another case or of another record version)."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if data.get("version") != RECORD_VERSION or data.get("case") != _canonical(case):
+        return None
+    metrics = _from_json(data.get("metrics", {}))
+    if "figures" in metrics:
+        metrics["figures"] = [str(path.parent / f) for f in metrics["figures"]]
+    def num(key):
+        v = data.get(key)
+        return math.nan if v is None else float(v)
+
+    return RunRecord(data.get("name", path.name), case, path.parent / data.get("dataset", ""),
+                     data["status"], data.get("message", ""), num("time"), int(data.get("passes") or 0),
+                     num("residual"), num("relaxation"), reused=True, metrics=metrics)
 
 
 def _describe_numerics(case: Case) -> str:
@@ -526,9 +605,28 @@ def write_csv(path: Path, columns: list[Column], rows: list[dict]) -> Path:
     return atomic_write(path, write)
 
 
+def _records_text(records) -> str:
+    """Which rows come from run records rather than datasets present here, and, for a record
+    carried over from an earlier table (its dataset lost), where it was carried from."""
+    from_record = [r for r in records if r.reused and not r.path.is_file() and r.ok]
+    if not from_record:
+        return ""
+    text = ("Rows reported from their run records (`<run>.record.json`; the dataset is not in this "
+            "folder): " + ", ".join(f"`{r.name}`" for r in from_record) + ".")
+    carried = [r for r in from_record if r.metrics.get("carried_from")]
+    if carried:
+        text += (" Of these, " + ", ".join(f"`{r.name}`" for r in carried) + " carry the row of "
+                 + "; ".join(sorted({r.metrics['carried_from'] for r in carried}))
+                 + ": their datasets were lost with the machine they ran on before records were "
+                 "written, so they hold only the table's columns and the per-run figures drawn when "
+                 "they ran (no residual history for the study's summary figure).")
+    return text
+
+
 def write_report(outdir: Path, study: str, args, *, title: str, intro: list[str],
                  columns: list[Column], rows: list[dict], figures: list[Path],
-                 sections: list[tuple[str, str]] = (), t_start: float, settings: str) -> Path:
+                 sections: list[tuple[str, str]] = (), t_start: float, settings: str,
+                 records: list[RunRecord] = ()) -> Path:
     """README.md of a study folder (generated) and the CSV of its table."""
     from eulag.output import atomic_write
 
@@ -545,7 +643,10 @@ def write_report(outdir: Path, study: str, args, *, title: str, intro: list[str]
     lines += intro + [""]
     lines += ["## Table", "", markdown_table(columns, rows), "",
               f"The same table as CSV: [{csv_path.name}]({csv_path.name}). Each run's dataset is "
-              "`<run>.nc` in this folder.", ""]
+              "`<run>.nc` in the output folder (not committed: 70-90 MB each); what the table and "
+              "figures take from it is in `<run>.record.json` beside it (a failed run: "
+              "`<run>.failed.json`), which `--resume` reports from when the dataset is not there."
+              + (" " + _records_text(records) if _records_text(records) else ""), ""]
     for head, text in sections:
         lines += [f"## {head}", "", text, ""]
     if figures:
@@ -805,12 +906,11 @@ def study_tsuji_morikawa(args, outdir: Path, t_start: float) -> int:
 
         def extract(ds, rec, u0=u0, name=name):
             ys = np.linspace(-1.0, 1.0, 201)
-            curves[name] = {
+            m = {"curves": {
                 "y": ys,
                 "gas": diameter_profile(ds, "gas_ux", x, ys, wall_value=0.0, scale=u0),
                 "particle": diameter_profile(ds, "particle_ux", x, ys, scale=u0),
-                "particle_se": diameter_profile(ds, "particle_ux_stderr", x, ys, scale=u0)}
-            m = {}
+                "particle_se": diameter_profile(ds, "particle_ux_stderr", x, ys, scale=u0)}}
             for phase in ("gas", "particle"):
                 if phase not in meas:
                     continue
@@ -831,6 +931,8 @@ def study_tsuji_morikawa(args, outdir: Path, t_start: float) -> int:
 
         rec = run_case(args, name, case, outdir, f"[tsuji-morikawa {i}/{len(cases)}] {name}", extract)
         records.append(rec)
+        if "curves" in rec.metrics:
+            curves[name] = rec.metrics["curves"]
 
     rows = []
     for (name, case), rec in zip(cases, records):
@@ -878,7 +980,7 @@ def study_tsuji_morikawa(args, outdir: Path, t_start: float) -> int:
         "Provenance of the measurements (header of the file):", "", prov]
     write_report(outdir, "tsuji-morikawa", args, title="Tsuji–Morikawa comparison", intro=intro,
                  columns=columns, rows=rows, figures=figures, t_start=t_start,
-                 settings=_settings_text([c for _, c in cases], args.quick))
+                 settings=_settings_text([c for _, c in cases], args.quick), records=records)
     return _finish(args, outdir, records, allowed_failures=False)
 
 
@@ -996,7 +1098,7 @@ def study_scenes(args, outdir: Path, t_start: float) -> int:
         "scene are in `figures/`."]
     write_report(outdir, "scenes", args, title="Secondary-flow scene matrix (scenes a–h)", intro=intro,
                  columns=columns, rows=rows, figures=figures, t_start=t_start,
-                 settings=_settings_text([c for _, c in cases], args.quick))
+                 settings=_settings_text([c for _, c in cases], args.quick), records=records)
     return _finish(args, outdir, records, allowed_failures=False)
 
 
@@ -1110,8 +1212,7 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
         c = _setting_case(case, s, args.quick)
 
         def extract(ds, rec, s=s):
-            profiles[s.name] = _er_profiles(ds, x)
-            m = {"x_station": _station(ds, x)}
+            m = {"x_station": _station(ds, x), "profiles": _er_profiles(ds, x)}
             u0 = float(ds.attrs["gas.bulk_velocity"])
             for phase in ("gas", "particle"):
                 if phase in meas:
@@ -1122,6 +1223,8 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
 
         records[s.name] = run_case(args, s.name, c, outdir, f"[error-runtime {i}/{len(settings)}] {s.name}",
                                    extract)
+        if "profiles" in records[s.name].metrics:
+            profiles[s.name] = records[s.name].metrics["profiles"]
 
     refp = profiles.get(ref.name)
     rows = []
@@ -1213,7 +1316,8 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
                  columns=columns, rows=rows, figures=[fig],
                  sections=[("Pareto front (total error against run time)", "\n".join(pareto_lines) or
                             "no run finished with an error estimate")],
-                 t_start=t_start, settings=_settings_text([_setting_case(case, runs[0], args.quick)], args.quick))
+                 t_start=t_start, settings=_settings_text([_setting_case(case, runs[0], args.quick)], args.quick),
+                 records=list(records.values()))
     return _finish(args, outdir, list(records.values()), allowed_failures=False)
 
 
@@ -1358,7 +1462,8 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
     records = []
     for i, (name, what, case) in enumerate(specs, 1):
         rec = run_case(args, name, case, outdir, f"[stability {i}/{len(specs)}] {name}",
-                       lambda ds, rec: _field_health(ds))
+                       lambda ds, rec, name=name: {**_field_health(ds),
+                                                   **(_tracer_ratios(ds) if name == "tracers_1um" else {})})
         records.append(rec)
     rows = []
     for (name, what, case), rec in zip(specs, records):
@@ -1442,7 +1547,8 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
                  rows=rows, figures=[fig],
                  sections=[("The 3.4 mm pellets", pellet),
                            ("The 1 µm tracers", _tracer_sink_text(specs, records))], t_start=t_start,
-                 settings=_settings_text([c for _, _, c in specs if isinstance(c, Case)], args.quick))
+                 settings=_settings_text([c for _, _, c in specs if isinstance(c, Case)], args.quick),
+                 records=records)
     return _finish(args, outdir, records, allowed_failures=True)
 
 
@@ -1465,25 +1571,29 @@ def _tracer_sink_text(specs, records) -> str:
         "dissipation. The tracer run shows what the point-particle model with this dispersion model "
         "gives, not what 1 µm particles do.")
     for (name, _, _), rec in zip(specs, records):
-        if name != "tracers_1um" or not rec.ok or not rec.path.is_file():
-            continue
-        try:
-            ds = _open(rec.path)
-            r = np.asarray(ds["r"].values)
-            core = r < 0.5 * float(ds.attrs["pipe.diameter"]) / 2
-            cp = ds["particle_concentration"].values[:, core, :]
-            sk = ds["source_k"].values[:, core, :]
-            eps = ds["gas_epsilon"].values[:, core, :]
-            rho = float(ds.attrs["gas.density"])
-            ok = cp > 0
-            ratio = float(np.median(-sk[ok] / (cp[ok] * eps[ok])))
-            gas_ratio = float(np.median(-sk[ok] / (rho * eps[ok])))
-        except Exception:  # noqa: BLE001 - the explanation stands without the run's numbers
+        ratio, gas_ratio = rec.metrics.get("tracer_sk_ratio"), rec.metrics.get("tracer_sk_gas_ratio")
+        if name != "tracers_1um" or not rec.ok or ratio is None or gas_ratio is None:
             continue
         text += (f" In this run (core, r < R/2, median over the cells with particles; S_k as applied, "
                  f"i.e. relaxed, so it reaches the sampled value only as the loop converges): "
                  f"-S_k/(c_p eps) = {ratio:.3g} against {3 / C_T:.1f}, and -S_k/(rho eps) = {gas_ratio:.3g}.")
     return text
+
+
+def _tracer_ratios(ds) -> dict[str, float]:
+    """Median -S_k/(c_p eps) and -S_k/(rho eps) in the core (r < R/2) cells with particles."""
+    try:
+        r = np.asarray(ds["r"].values)
+        core = r < 0.5 * float(ds.attrs["pipe.diameter"]) / 2
+        cp = ds["particle_concentration"].values[:, core, :]
+        sk = ds["source_k"].values[:, core, :]
+        eps = ds["gas_epsilon"].values[:, core, :]
+        rho = float(ds.attrs["gas.density"])
+        ok = cp > 0
+        return {"tracer_sk_ratio": float(np.median(-sk[ok] / (cp[ok] * eps[ok]))),
+                "tracer_sk_gas_ratio": float(np.median(-sk[ok] / (rho * eps[ok])))}
+    except Exception:  # noqa: BLE001 - the explanation stands without the run's numbers
+        return {}
 
 
 def _stability_figure(path: Path, specs, records) -> Path:

@@ -122,6 +122,28 @@ def test_resume_reuses_finished_runs(tm, capsys):
     assert [r["rms"] for r in new] == [r["rms"] for r in old]
 
 
+def test_resume_reports_finished_runs_from_their_records_when_the_datasets_are_gone(tm, tmp_path, capsys):
+    # the datasets are not committed; the records are, and a clean clone must not re-run them
+    status, out = tm
+    assert status == 0
+    records = sorted(out.glob("*.record.json"))
+    assert len(records) == 4
+    for r in records:
+        (tmp_path / r.name).write_text(r.read_text())
+    assert study("tsuji-morikawa", "--quick", "--resume", "-o", tmp_path) == 0
+    err = capsys.readouterr().err
+    assert err.count("reported from its record") == 4 and "running" not in err
+    assert not list(tmp_path.glob("*.nc"))
+    old, new = rows(out / "tsuji-morikawa.csv"), rows(tmp_path / "tsuji-morikawa.csv")
+    for key in ("rms", "max", "bias", "stderr", "passes", "time_s", "commit"):
+        assert [r[key] for r in new] == [r[key] for r in old], key
+    assert (tmp_path / "tsuji_morikawa_profiles.png").stat().st_size > 1000  # drawn from the records
+    # a record of another case is not taken for this one
+    rec = next(iter(sorted(tmp_path.glob("*.record.json"))))
+    rec.write_text(rec.read_text().replace('"version": 1', '"version": 0'))
+    assert studies.read_record(rec, Case.from_toml(BASE)) is None
+
+
 def test_resume_continues_an_interrupted_run_from_its_checkpoint(tmp_path, capsys):
     from eulag.coupling import CouplingLoop
 
