@@ -61,7 +61,9 @@ def carry(commit: str, study: str, names: list[str]) -> list[Path]:
             raise SystemExit(f"carry_rows: {name!r} is not a row of {source}")
         r, case = by_name[name], cases[name]
         common = {"collision_momentum": _num(r["collision_momentum"]), "commit": r["commit"] or None,
-                  "carried_from": source}
+                  "carried_from": source,
+                  "carried_note": "the dataset was lost with the machine it ran on before run records "
+                                  "were written; the record holds the table's columns only"}
         if study == "stability":
             status = {"yes": "converged", "no": "not converged"}[r["converged"]]
             rec = RunRecord(name, case, outdir / f"{name}.nc", status,

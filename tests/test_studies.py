@@ -327,9 +327,13 @@ def test_a_failing_run_is_recorded_with_its_diagnosis(tmp_path, monkeypatch):
     monkeypatch.setattr(coupling, "run", failing_run)
     case = studies._quick(Case.from_toml(BASE))
     args = SimpleNamespace(resume=False, quiet=True)
+    # a record of an earlier success must not outlive the failed re-run
+    studies.write_record(tmp_path / "boom.record.json", case,
+                         studies.RunRecord("boom", case, tmp_path / "boom.nc", "converged", passes=3))
     rec = studies.run_case(args, "boom", case, tmp_path, "boom")
     assert rec.status == "failed" and "k < 0" in rec.message and not rec.ok
     assert (tmp_path / "boom.failed.json").is_file() and not (tmp_path / "boom.nc").exists()
+    assert not (tmp_path / "boom.record.json").exists()
     n = len(calls)
     again = studies.run_case(SimpleNamespace(resume=True, quiet=True), "boom", case, tmp_path, "boom")
     assert again.reused and again.status == "failed" and len(calls) == n  # not run again
