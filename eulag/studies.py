@@ -1450,6 +1450,8 @@ def _field_health(ds) -> dict[str, Any]:
             "stuck_total": stuck, "stuck_final": int(_attr_float(ds, "parcels_stuck_final", 0)),
             "lost": lost, "relax_min": float(np.nanmin(relax)) if np.any(np.isfinite(relax)) else math.nan,
             "sliding_pct": 100.0 * sliding / steps if steps and math.isfinite(steps) else math.nan,
+            "floored_max": int(np.max(ds["gas_floored_cells"].values)) if "gas_floored_cells" in ds else None,
+            "floored_last": int(ds["gas_floored_cells"].values[-1]) if "gas_floored_cells" in ds else None,
             "residual_history": [float(v) for v in np.asarray(ds["residual"].values, dtype=float)],
             "relaxation_history": [float(v) for v in relax]}
 
@@ -1491,6 +1493,8 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
                      "stuck_final": m.get("stuck_final"), "lost": m.get("lost"),
                      "sliding_pct": m.get("sliding_pct"), "nonfinite": m.get("nonfinite"),
                      "k_min": m.get("k_min"), "eps_min": m.get("eps_min"),
+                     "floored": (f"{m['floored_last']} (max {m['floored_max']})"
+                                 if m.get("floored_max") is not None else None),
                      "collision_momentum": m.get("collision_momentum"), "commit": m.get("commit"),
                      "first_wrong": wrong})
     columns = [Column("case", "case"), Column("change", "change from the base case"),
@@ -1502,6 +1506,7 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
                Column("sliding_pct", "sliding/rolling steps [%]", "{:.3g}"),
                Column("nonfinite", "non-finite gas fields"), Column("k_min", "min k [m²/s²]", "{:.3g}"),
                Column("eps_min", "min ε [m²/s³]", "{:.3g}"),
+               Column("floored", "cells at the k/ε floor: last pass (max)"),
                Column("collision_momentum", "collision momentum / inflow", "{:+.2g}"),
                Column("commit", "commit"),
                Column("first_wrong", "first quantity to go wrong / why not converged")]
@@ -1546,7 +1551,10 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
         "parcels stopped by the residence-time cap "
         "(all passes, and in the averaged final passes); lost parcels (must be 0); the share of "
         "particle steps spent sliding or rolling on the wall (final passes; near saltation this is "
-        "the bottom layer); gas fields with a non-finite value; the smallest k and epsilon; "
+        "the bottom layer); gas fields with a non-finite value; the smallest k and epsilon; the gas "
+        "cells where k or epsilon was held at its floor (k = 1e-10 U0², rans.solver.K_FLOOR) in the last pass's gas solve and the "
+        "most in any pass (counted by the solver, `gas_floored_cells`; — where the record predates the "
+        "column); "
         + COLLISION_MOMENTUM_TEXT + "; the first "
         "quantity to go wrong (the CouplingError message), or why the run did not converge."]
     fig = _stability_figure(outdir / "stability_history.png", specs, records)  # None: no history
