@@ -516,6 +516,20 @@ def _why_not_converged(ds, case: Case) -> str:
             return (f"collision momentum / inflow {recent_collision_momentum(early_cm):+.3g} (last passes) "
                     f"still changing ({collision_momentum_to_come(early_cm):.2g} to come, tolerance "
                     f"{COLLISION_MOMENTUM_TOL:g}) when max_passes = {n.max_passes} was reached")
+    from eulag.coupling import _INTEGRAL_PASSES, _INTEGRAL_TOL
+
+    if "pressure_gradient_history" in ds and "relaxation" in ds:
+        dp = np.asarray(ds["pressure_gradient_history"].values, dtype=float)[: res.size - n.average_passes]
+        rel = np.asarray(ds["relaxation"].values, dtype=float)[: res.size - n.average_passes]
+        if dp.size > _INTEGRAL_PASSES and np.all(np.isfinite(dp[-_INTEGRAL_PASSES - 1:])):
+            d = dp[-_INTEGRAL_PASSES - 1:]
+            trend = float(np.polyfit(np.arange(d.size, dtype=float), d, 1)[0])
+            alpha = float(rel[-1])
+            to_come = abs(trend) * max(1.0, (1.0 - alpha) / alpha) / abs(d[-1])
+            if to_come > _INTEGRAL_TOL:
+                return (f"-dp/dx still drifting ({trend:+.3g} Pa/m per pass at {d[-1]:.4g} Pa/m, "
+                        f"relaxation {alpha:g}: {100 * to_come:.2g} % still to come, tolerance "
+                        f"{100 * _INTEGRAL_TOL:g} %) when max_passes = {n.max_passes} was reached")
     return (f"pressure gradient or mass balance still drifting when max_passes = {n.max_passes} "
             "was reached")
 
