@@ -117,6 +117,19 @@ def collision_momentum_to_come(history) -> float:
     return float(abs(trend) * COLLISION_MOMENTUM_AHEAD)
 
 
+def pressure_gradient_to_come(history, alpha) -> tuple[float, float]:
+    """(trend [Pa/m per pass], change still to come / last value) of the section-mean pressure
+    gradient over the last ``_INTEGRAL_PASSES + 1`` passes of ``history``, at relaxation ``alpha``.
+
+    A relaxed iteration still moving by d per pass has about d (1 - alpha)/alpha to go; d is the
+    least-squares trend over the last passes (the sampled sources make the pressure gradient
+    scatter from pass to pass; the trend is what is still to come)."""
+    dp = np.asarray(history[-(_INTEGRAL_PASSES + 1):], dtype=float)
+    trend = float(np.polyfit(np.arange(dp.size, dtype=float), dp, 1)[0])
+    drift, last = abs(trend) * max(1.0, (1.0 - alpha) / alpha), abs(float(dp[-1]))
+    return trend, drift / last if last > 0.0 else (math.inf if drift > 0.0 else 0.0)
+
+
 def collision_momentum_settled(history) -> bool:
     """Whether the stochastic collisions' net momentum (per pass, / the particle inflow) has
     settled: less than COLLISION_MOMENTUM_TOL of change still to come.  The fictitious partners
@@ -508,14 +521,7 @@ class CouplingLoop:
             return False
         if len(h.residual) < _INTEGRAL_PASSES + 1 or not h.residual[-1] < n.coupling_tolerance:
             return False
-        dp = np.asarray(h.pressure_gradient[-(_INTEGRAL_PASSES + 1):])
-        # a relaxed iteration still moving by d per pass has about d (1 - alpha)/alpha to go;
-        # d is the least-squares trend over the last passes (the sampled sources make the
-        # pressure gradient scatter from pass to pass; the trend is what is still to come)
-        alpha = h.relaxation[-1]
-        trend = np.polyfit(np.arange(dp.size, dtype=float), dp, 1)[0]
-        drift = abs(trend) * max(1.0, (1.0 - alpha) / alpha)
-        if drift > _INTEGRAL_TOL * abs(dp[-1]):
+        if pressure_gradient_to_come(h.pressure_gradient, h.relaxation[-1])[1] > _INTEGRAL_TOL:
             return False
         if not max(h.mass_balance[-_INTEGRAL_PASSES:]) < _INTEGRAL_TOL:
             return False

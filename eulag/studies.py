@@ -433,6 +433,7 @@ def read_record(path: Path, case: Case) -> RunRecord | None:
     metrics = _from_json(data.get("metrics", {}))
     if "figures" in metrics:
         metrics["figures"] = [str(path.parent / f) for f in metrics["figures"]]
+
     def num(key):
         v = data.get(key)
         return math.nan if v is None else float(v)
@@ -516,19 +517,17 @@ def _why_not_converged(ds, case: Case) -> str:
             return (f"collision momentum / inflow {recent_collision_momentum(early_cm):+.3g} (last passes) "
                     f"still changing ({collision_momentum_to_come(early_cm):.2g} to come, tolerance "
                     f"{COLLISION_MOMENTUM_TOL:g}) when max_passes = {n.max_passes} was reached")
-    from eulag.coupling import _INTEGRAL_PASSES, _INTEGRAL_TOL
+    from eulag.coupling import _INTEGRAL_PASSES, _INTEGRAL_TOL, pressure_gradient_to_come
 
     if "pressure_gradient_history" in ds and "relaxation" in ds:
+        # the passes before the final ones: where the loop last judged convergence
         dp = np.asarray(ds["pressure_gradient_history"].values, dtype=float)[: res.size - n.average_passes]
         rel = np.asarray(ds["relaxation"].values, dtype=float)[: res.size - n.average_passes]
         if dp.size > _INTEGRAL_PASSES and np.all(np.isfinite(dp[-_INTEGRAL_PASSES - 1:])):
-            d = dp[-_INTEGRAL_PASSES - 1:]
-            trend = float(np.polyfit(np.arange(d.size, dtype=float), d, 1)[0])
-            alpha = float(rel[-1])
-            to_come = abs(trend) * max(1.0, (1.0 - alpha) / alpha) / abs(d[-1])
+            trend, to_come = pressure_gradient_to_come(dp, float(rel[-1]))
             if to_come > _INTEGRAL_TOL:
-                return (f"-dp/dx still drifting ({trend:+.3g} Pa/m per pass at {d[-1]:.4g} Pa/m, "
-                        f"relaxation {alpha:g}: {100 * to_come:.2g} % still to come, tolerance "
+                return (f"-dp/dx still drifting ({trend:+.3g} Pa/m per pass at {dp[-1]:.4g} Pa/m, "
+                        f"relaxation {rel[-1]:g}: {100 * to_come:.2g} % still to come, tolerance "
                         f"{100 * _INTEGRAL_TOL:g} %) when max_passes = {n.max_passes} was reached")
     return (f"pressure gradient or mass balance still drifting when max_passes = {n.max_passes} "
             "was reached")
@@ -667,7 +666,7 @@ def write_report(outdir: Path, study: str, args, *, title: str, intro: list[str]
               "`<run>.nc` in the output folder (not committed: 70-90 MB each); what the table and "
               "figures take from it is in `<run>.record.json` beside it (a failed run: "
               "`<run>.failed.json`), which `--resume` reports from when the dataset is not there."
-              + (" " + _records_text(records) if _records_text(records) else ""), ""]
+              + "".join(" " + t for t in [_records_text(records)] if t), ""]
     for head, text in sections:
         lines += [f"## {head}", "", text, ""]
     if figures:

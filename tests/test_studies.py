@@ -138,10 +138,14 @@ def test_resume_reports_finished_runs_from_their_records_when_the_datasets_are_g
     for key in ("rms", "max", "bias", "stderr", "passes", "time_s", "commit"):
         assert [r[key] for r in new] == [r[key] for r in old], key
     assert (tmp_path / "tsuji_morikawa_profiles.png").stat().st_size > 1000  # drawn from the records
-    # a record of another case is not taken for this one
-    rec = next(iter(sorted(tmp_path.glob("*.record.json"))))
+    # a record is taken only for its own case and record version
+    name, case = studies.tsuji_morikawa_cases(True)[0]
+    rec = tmp_path / f"{name}.record.json"
+    assert studies.read_record(rec, case) is not None
+    other = case.replace(gas={"bulk_velocity": case.gas.bulk_velocity + 1.0})
+    assert studies.read_record(rec, other) is None
     rec.write_text(rec.read_text().replace('"version": 1', '"version": 0'))
-    assert studies.read_record(rec, Case.from_toml(BASE)) is None
+    assert studies.read_record(rec, case) is None
 
 
 def test_resume_continues_an_interrupted_run_from_its_checkpoint(tmp_path, capsys):
