@@ -32,6 +32,15 @@ pass-to-pass noise the lagged fields carry into the next pass (it is what kept t
 such cases at about 2) and damps an oscillating mode; each change is in the history
 (``relaxation``) and in the progress line.
 
+Recovery: when the last W residuals since the last change of α are all below the tolerance
+(the changes are noise) but the loop has not converged (the pressure gradient or the collision
+momentum still drifts), α is doubled again, up to the case's α and never above an α whose gas
+solve failed; once only: a recovered α that stagnates again is halved for good.  At a small α
+the relaxed sources close only about α of their remaining gap per pass: η = 10 and the 0.3 m
+pipe, halved to 0.075 when their residual sat just above the tolerance, reached the residual
+of pure noise but still had 2.3 % and 1.3 % of −dp/dx to come after 40 passes (stability study,
+147a509).
+
 Convergence ("no longer changing beyond noise"): per cell the change of the relaxed sources,
 ΔS = α (S_pass − S_used_prev), is compared with its own statistical noise
 α · se(S_pass) · sqrt(2/(2 − α)) (se from the batch spread; the relaxed history adds the
@@ -40,7 +49,7 @@ pass is the RMS of these ratios over the cells and the momentum and k sources (�
 changes are pure noise).  Converged when the residual is below ``numerics.coupling_tolerance``
 and, over the last three passes, the section-mean pressure gradient changed so little that
 the drift still to come of the relaxed iteration (least-squares change per pass over the last
-four values × (1 − α)/α) is below 1 %
+four values × (1 − α)/α, α the smallest of those four passes') is below 1 %
 and the particle mass balance (in = out + stuck) closes within 1 %, and the net momentum the
 stochastic inter-particle collisions gave the particles has settled (its change still to come,
 from its trend, below 2 % of their momentum inflow; ``collision_momentum_settled``).  Then ``average_passes``
@@ -117,17 +126,21 @@ def collision_momentum_to_come(history) -> float:
     return float(abs(trend) * COLLISION_MOMENTUM_AHEAD)
 
 
-def pressure_gradient_to_come(history, alpha) -> tuple[float, float]:
-    """(trend [Pa/m per pass], change still to come / last value) of the section-mean pressure
-    gradient over the last ``_INTEGRAL_PASSES + 1`` passes of ``history``, at relaxation ``alpha``.
+def pressure_gradient_to_come(history, relaxation) -> tuple[float, float, float]:
+    """(trend [Pa/m per pass], change still to come / last value, relaxation used) of the
+    section-mean pressure gradient over the last ``_INTEGRAL_PASSES + 1`` passes of ``history``,
+    ``relaxation`` the α of each pass (the same length).
 
     A relaxed iteration still moving by d per pass has about d (1 - alpha)/alpha to go; d is the
     least-squares trend over the last passes (the sampled sources make the pressure gradient
-    scatter from pass to pass; the trend is what is still to come)."""
+    scatter from pass to pass; the trend is what is still to come), alpha the smallest of those
+    passes' (a trend measured at a small α, just before it was raised, is a slow approach to
+    the same gap)."""
     dp = np.asarray(history[-(_INTEGRAL_PASSES + 1):], dtype=float)
+    alpha = float(np.min(np.asarray(relaxation, dtype=float)[-(_INTEGRAL_PASSES + 1):]))
     trend = float(np.polyfit(np.arange(dp.size, dtype=float), dp, 1)[0])
     drift, last = abs(trend) * max(1.0, (1.0 - alpha) / alpha), abs(float(dp[-1]))
-    return trend, drift / last if last > 0.0 else (math.inf if drift > 0.0 else 0.0)
+    return trend, drift / last if last > 0.0 else (math.inf if drift > 0.0 else 0.0), alpha
 
 
 def collision_momentum_settled(history) -> bool:
@@ -260,6 +273,9 @@ class CouplingLoop:
         self.settings = track_settings(case)
         self.alpha = case.numerics.relaxation
         self.alpha_changed_at = 0  # pass after which alpha was last changed (stagnation rule)
+        self.alpha_cap = self.alpha  # the recovery never goes above an α whose gas solve failed
+        self.recovered = False  # α was raised again by the recovery rule
+        self.recovery_blocked = False  # ... and then halved again: no second recovery
         self.two_way = case.physics.coupling != "one-way"
         self.history = _History()
         self.timings = {"gas_solve": 0.0, "lagrangian": 0.0, "checkpoint": 0.0, "compile": 0.0}
@@ -379,7 +395,7 @@ class CouplingLoop:
             raise CouplingError(f"pass {m}: {counts['lost']} parcels lost (non-finite state or left "
                                 "the pipe through a wall); the tracker must never lose parcels")
         if self.two_way and self.phase == "early":
-            self._check_stagnation()
+            self._adapt_relaxation()
         if self.physics.inter_particle_collisions:
             new_stats = sample.cell_statistics(self.gas, min_visits=self.settings.min_visits)
             self.stats = self._next_statistics(new_stats)
@@ -403,6 +419,7 @@ class CouplingLoop:
                     alpha = max(MIN_RELAXATION, alpha / 2)
             if alpha != self.alpha:
                 self.alpha_changed_at = m - 1
+                self.alpha_cap = min(self.alpha_cap, alpha)
             self.alpha = alpha
             relaxed["epsilon"] = self._gas_sources(relaxed).applied_epsilon(gas.k, gas.epsilon)
             self.sources = relaxed
@@ -447,18 +464,29 @@ class CouplingLoop:
             self.progress(state)
         return state
 
-    def _check_stagnation(self):
-        """Halve α when the residual has stopped falling (module docstring, "Stagnation")."""
+    def _adapt_relaxation(self):
+        """Halve α when the residual has stopped falling; raise it again when the residual has
+        come below the tolerance (module docstring, "Stagnation" and "Recovery")."""
         w = _STAGNATION_WINDOW
         r = np.asarray(self.history.residual[self.alpha_changed_at:], dtype=float)
         r = r[np.isfinite(r)]
+        tol = self.case.numerics.coupling_tolerance
+        if (r.size >= w and np.all(r[-w:] < tol) and self.alpha < self.alpha_cap
+                and not self.recovery_blocked):
+            self.alpha = min(self.alpha_cap, 2.0 * self.alpha)
+            self.alpha_changed_at = self.pass_index - 1
+            self.recovered = True
+            self._tell(f"pass {self.pass_index}: the residual is below {tol:g} (last {w} passes "
+                       f"{r[-w:].min():.3g}-{r[-w:].max():.3g}) but the loop has not converged; "
+                       f"relaxation raised again to {self.alpha:g}")
+            return
         if r.size < 2 * w or self.alpha <= MIN_RELAXATION:
             return
-        tol = self.case.numerics.coupling_tolerance
         last, before = r[-w:], r[-2 * w:-w]
         if np.all(last >= tol) and last.min() > _STAGNATION_GAIN * before.min():
             self.alpha = max(MIN_RELAXATION, self.alpha / 2)
             self.alpha_changed_at = self.pass_index - 1
+            self.recovery_blocked = self.recovered
             self._tell(f"pass {self.pass_index}: the residual stagnates above {tol:g} "
                        f"(last {w} passes {last.min():.3g}-{last.max():.3g}); relaxation halved to {self.alpha:g}")
 
@@ -521,7 +549,7 @@ class CouplingLoop:
             return False
         if len(h.residual) < _INTEGRAL_PASSES + 1 or not h.residual[-1] < n.coupling_tolerance:
             return False
-        if pressure_gradient_to_come(h.pressure_gradient, h.relaxation[-1])[1] > _INTEGRAL_TOL:
+        if pressure_gradient_to_come(h.pressure_gradient, h.relaxation)[1] > _INTEGRAL_TOL:
             return False
         if not max(h.mass_balance[-_INTEGRAL_PASSES:]) < _INTEGRAL_TOL:
             return False
@@ -578,6 +606,8 @@ class CouplingLoop:
         meta = {"version": CHECKPOINT_VERSION, "case": self.case.to_attrs(), "pass_index": self.pass_index,
                 "phase": self.phase, "final_left": self.final_left, "converged": self.converged,
                 "finished": self.finished, "alpha": self.alpha, "alpha_changed_at": self.alpha_changed_at,
+                "alpha_cap": self.alpha_cap, "recovered": self.recovered,
+                "recovery_blocked": self.recovery_blocked,
                 "window_n": self.window_n,
                 "window_batches": self.window_batches, "window_parcels": self.window_parcels,
                 "timings": self.timings}
@@ -624,6 +654,10 @@ class CouplingLoop:
                   "alpha_changed_at", "window_n",
                   "window_batches", "window_parcels"):
             setattr(self, k, meta[k])
+        # checkpoints from before the recovery rule: no recovery (an earlier α may have failed)
+        self.alpha_cap = meta.get("alpha_cap", self.alpha)
+        self.recovered = meta.get("recovered", False)
+        self.recovery_blocked = meta.get("recovery_blocked", False)
         self.timings.update(meta["timings"])
 
     def _gas_from(self, data, tag):

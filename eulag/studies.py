@@ -524,10 +524,10 @@ def _why_not_converged(ds, case: Case) -> str:
         dp = np.asarray(ds["pressure_gradient_history"].values, dtype=float)[: res.size - n.average_passes]
         rel = np.asarray(ds["relaxation"].values, dtype=float)[: res.size - n.average_passes]
         if dp.size > _INTEGRAL_PASSES and np.all(np.isfinite(dp[-_INTEGRAL_PASSES - 1:])):
-            trend, to_come = pressure_gradient_to_come(dp, float(rel[-1]))
+            trend, to_come, alpha = pressure_gradient_to_come(dp, rel)
             if to_come > _INTEGRAL_TOL:
                 return (f"-dp/dx still drifting ({trend:+.3g} Pa/m per pass at {dp[-1]:.4g} Pa/m, "
-                        f"relaxation {rel[-1]:g}: {100 * to_come:.2g} % still to come, tolerance "
+                        f"relaxation {alpha:g}: {100 * to_come:.2g} % still to come, tolerance "
                         f"{100 * _INTEGRAL_TOL:g} %) when max_passes = {n.max_passes} was reached")
     return (f"pressure gradient or mass balance still drifting when max_passes = {n.max_passes} "
             "was reached")
@@ -732,7 +732,8 @@ def _settings_text(cases: list[Case], quick: bool) -> str:
             f"{n.axial_cells} axial x {n.radial_cells} radial x {n.azimuthal_cells} azimuthal cells, "
             f"{n.parcels} parcels per pass in the final passes ({n.parcels_start} earlier), "
             f"{n.average_passes} final passes averaged, at most {n.max_passes} passes, relaxation "
-            f"{n.relaxation:g} (halved by the loop when a gas solve fails or the residual stagnates), "
+            f"{n.relaxation:g} (halved by the loop when a gas solve fails or the residual stagnates, "
+            "raised again once when a halved α has brought the residual below the tolerance), "
             f"step rule {n.step_rule} x "
             f"{n.step_factor:g}, coupling tolerance {n.coupling_tolerance:g}, seed {n.seed}. "
             "Model constants are the paper's (PHYSICS.md §12); nothing is tuned to the measurements.")
@@ -1560,7 +1561,9 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
         "Columns: converged (yes / no = finished at max_passes / failed = the coupling loop stopped "
         "with a diagnosis / rejected = the case validation refused it); final coupling residual; the "
         "source under-relaxation the loop chose (final and smallest; the loop halves it, down to "
-        "0.05, when a gas solve with the sources fails or the residual stagnates above the tolerance); "
+        "0.05, when a gas solve with the sources fails or the residual stagnates above the tolerance, "
+        "and doubles it again, once, when the residual at a halved α is below the tolerance but the "
+        "loop has not converged); "
         "parcels stopped by the residence-time cap "
         "(all passes, and in the averaged final passes); lost parcels (must be 0); the share of "
         "particle steps spent sliding or rolling on the wall (final passes; near saltation this is "

@@ -207,7 +207,7 @@ def test_relaxation_is_halved_when_the_residual_stagnates(residuals, halved):
     loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5}), notify=told.append)
     loop.history.residual = [float("nan")] + residuals
     loop.pass_index = len(loop.history.residual) + 1
-    loop._check_stagnation()
+    loop._adapt_relaxation()
     assert loop.alpha == (0.15 if halved else 0.3)
     # the user is told when it happens, not only in the next pass line
     assert [("halved to 0.15" in t) for t in told] == ([True] if halved else [])
@@ -215,8 +215,72 @@ def test_relaxation_is_halved_when_the_residual_stagnates(residuals, halved):
         # the next judgement waits for 2 W passes at the new relaxation
         loop.history.residual += [2.3]
         loop.pass_index += 1
-        loop._check_stagnation()
+        loop._adapt_relaxation()
         assert loop.alpha == 0.15
+
+
+@pytest.mark.parametrize("residuals, cap, blocked, raised", [
+    ([1.2, 1.1, 1.3, 1.0], 0.3, False, True),     # noise below the tolerance 1.5: back to 0.3
+    ([1.2, 1.6, 1.3, 1.0], 0.3, False, False),    # one of the last W above the tolerance
+    ([1.2, 1.3, 1.0], 0.3, False, False),         # too few passes at this α to judge
+    ([1.2, 1.1, 1.3, 1.0], 0.15, False, False),   # the gas solve failed at 0.3: stays
+    ([1.2, 1.1, 1.3, 1.0], 0.3, True, False),     # recovered once and stagnated again: stays
+])
+def test_relaxation_is_raised_again_when_the_residual_is_below_the_tolerance(residuals, cap, blocked, raised):
+    """The recovery rule (coupling module docstring): α halved by the stagnation rule is
+    doubled again once the residual sits below the tolerance but the loop has not converged."""
+    told = []
+    loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5}), notify=told.append)
+    loop.history.residual = [float("nan"), 2.3, 2.4, 2.2, 2.5, 2.3, 2.4, 2.5, 2.2] + residuals
+    loop.alpha, loop.alpha_changed_at, loop.alpha_cap, loop.recovery_blocked = 0.15, 9, cap, blocked
+    loop.pass_index = len(loop.history.residual) + 1
+    loop._adapt_relaxation()
+    assert loop.alpha == (0.3 if raised else 0.15)
+    assert [("raised again to 0.3" in t) for t in told] == ([True] if raised else [])
+    if raised:
+        # stagnating again at the recovered α halves it for good
+        loop.history.residual += [2.3, 2.4, 2.2, 2.5, 2.3, 2.4, 2.5, 2.2]
+        loop.pass_index = len(loop.history.residual) + 1
+        loop._adapt_relaxation()
+        assert loop.alpha == 0.15 and loop.recovery_blocked
+        loop.history.residual += [1.2, 1.1, 1.3, 1.0]
+        loop.pass_index = len(loop.history.residual) + 1
+        loop._adapt_relaxation()
+        assert loop.alpha == 0.15
+
+
+def test_a_failed_gas_solve_caps_the_recovery(monkeypatch):
+    """An α whose gas solve failed is never tried again by the recovery rule."""
+    import rans
+
+    loop = CouplingLoop(small_case())
+    orig = loop._solve_gas
+    calls = []
+
+    def solve_gas(sources):
+        calls.append(sources is not None)
+        if sources is not None and len(calls) == 2:
+            raise rans.SolverDivergence("gas solve diverged: u_x = -1 (test)")
+        return orig(sources)
+
+    monkeypatch.setattr(loop, "_solve_gas", solve_gas)
+    loop.step()
+    loop.step()
+    assert loop.alpha == loop.alpha_cap == 0.15
+
+
+def test_the_pressure_gradient_drift_uses_the_smallest_relaxation_of_its_window():
+    """-dp/dx rising by 1 Pa/m per pass at 100 Pa/m: at α = 0.15 throughout, 1 x 0.85/0.15 =
+    5.7 % to come; when the first passes of the window ran at 0.075 (α just raised), the
+    slower approach measured there counts: 1 x 0.925/0.075 = 12.3 %."""
+    from eulag.coupling import pressure_gradient_to_come
+
+    dp = [96.0, 97.0, 98.0, 99.0, 100.0]
+    trend, to_come, alpha = pressure_gradient_to_come(dp, [0.15] * 5)
+    assert trend == pytest.approx(1.0) and alpha == 0.15
+    assert to_come == pytest.approx(0.85 / 0.15 / 100.0)
+    trend, to_come, alpha = pressure_gradient_to_come(dp, [0.3, 0.075, 0.075, 0.15, 0.15])
+    assert alpha == 0.075 and to_come == pytest.approx(0.925 / 0.075 / 100.0)
 
 
 def test_collision_statistics_keep_the_case_relaxation_when_alpha_is_lowered():
