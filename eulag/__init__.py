@@ -2,6 +2,8 @@
 
 import functools
 
+import rans  # noqa: F401  first: it sets single-threaded BLAS before numpy loads it (rans/__init__.py)
+
 __version__ = "0.1.0"
 
 

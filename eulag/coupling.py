@@ -33,9 +33,11 @@ such cases at about 2) and damps an oscillating mode; each change is in the hist
 (``relaxation``) and in the progress line.
 
 Recovery: when the last W residuals since the last change of α are all below the tolerance
-(the changes are noise) but the loop has not converged (the pressure gradient or the collision
-momentum still drifts), α is doubled again, up to the case's α and never above an α whose gas
-solve failed; once only: a recovered α that stagnates again is halved for good.  At a small α
+(the changes are noise) but the loop has not converged (the pressure gradient, the mass balance
+or the collision momentum still drifts, or the gas solve did not converge), α is doubled again,
+up to the case's α and never above an α whose gas solve failed; once only (a recovered α that
+stagnates again is halved for good), and not when fewer than W early passes are left (the
+averaged final passes would run at an α the loop has not judged).  At a small α
 the relaxed sources close only about α of their remaining gap per pass: η = 10 and the 0.3 m
 pipe, halved to 0.075 when their residual sat just above the tolerance, reached the residual
 of pure noise but still had 2.3 % and 1.3 % of −dp/dx to come after 40 passes (stability study,
@@ -274,8 +276,7 @@ class CouplingLoop:
         self.alpha = case.numerics.relaxation
         self.alpha_changed_at = 0  # pass after which alpha was last changed (stagnation rule)
         self.alpha_cap = self.alpha  # the recovery never goes above an α whose gas solve failed
-        self.recovered = False  # α was raised again by the recovery rule
-        self.recovery_blocked = False  # ... and then halved again: no second recovery
+        self.recovered = False  # α was raised again by the recovery rule (once only)
         self.two_way = case.physics.coupling != "one-way"
         self.history = _History()
         self.timings = {"gas_solve": 0.0, "lagrangian": 0.0, "checkpoint": 0.0, "compile": 0.0}
@@ -471,8 +472,10 @@ class CouplingLoop:
         r = np.asarray(self.history.residual[self.alpha_changed_at:], dtype=float)
         r = r[np.isfinite(r)]
         tol = self.case.numerics.coupling_tolerance
+        n = self.case.numerics
+        early_left = n.max_passes - n.average_passes - self.pass_index
         if (r.size >= w and np.all(r[-w:] < tol) and self.alpha < self.alpha_cap
-                and not self.recovery_blocked):
+                and not self.recovered and early_left >= w):
             self.alpha = min(self.alpha_cap, 2.0 * self.alpha)
             self.alpha_changed_at = self.pass_index - 1
             self.recovered = True
@@ -486,7 +489,6 @@ class CouplingLoop:
         if np.all(last >= tol) and last.min() > _STAGNATION_GAIN * before.min():
             self.alpha = max(MIN_RELAXATION, self.alpha / 2)
             self.alpha_changed_at = self.pass_index - 1
-            self.recovery_blocked = self.recovered
             self._tell(f"pass {self.pass_index}: the residual stagnates above {tol:g} "
                        f"(last {w} passes {last.min():.3g}-{last.max():.3g}); relaxation halved to {self.alpha:g}")
 
@@ -607,7 +609,6 @@ class CouplingLoop:
                 "phase": self.phase, "final_left": self.final_left, "converged": self.converged,
                 "finished": self.finished, "alpha": self.alpha, "alpha_changed_at": self.alpha_changed_at,
                 "alpha_cap": self.alpha_cap, "recovered": self.recovered,
-                "recovery_blocked": self.recovery_blocked,
                 "window_n": self.window_n,
                 "window_batches": self.window_batches, "window_parcels": self.window_parcels,
                 "timings": self.timings}
@@ -657,7 +658,6 @@ class CouplingLoop:
         # checkpoints from before the recovery rule: no recovery (an earlier α may have failed)
         self.alpha_cap = meta.get("alpha_cap", self.alpha)
         self.recovered = meta.get("recovered", False)
-        self.recovery_blocked = meta.get("recovery_blocked", False)
         self.timings.update(meta["timings"])
 
     def _gas_from(self, data, tag):

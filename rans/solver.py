@@ -745,13 +745,15 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
        as in the periodic mode), when the march uses SIMPLEC: after a divergence, and after
        the iterations ran out without convergence;
     2. after a divergence only: with the implicit k-eps and momentum relaxations (r, m) of
-       STATION_RELAXATION below the ones given, up to min(1/min(r, m), 4) times the iterations,
-       the relaxed change per iteration held to ``stol`` min(r, m).
+       STATION_RELAXATION below the ones given, up to min(1/min(r, m), 4) times the iterations
+       (each attempt may iterate on, below), the relaxed change per iteration held to
+       ``stol`` min(r, m).
 
-    An attempt that is still converging when its iterations run out (its change fell over the
-    last quarter of them at a rate that reaches the tolerance within STATION_EXTENSION times its
-    iterations: ``_still_converging``) iterates on, a quarter at a time, before any retry:
-    where noisy particle sinks leave k at 1e-3 of its level in a few cells, k and eps there
+    An attempt that is still converging when its iterations run out (the largest change of the
+    last quarter of them fell from the quarter before at a rate that reaches the tolerance
+    within STATION_EXTENSION times its iterations: ``_still_converging``) iterates on, a quarter
+    at a time, before any retry; if it diverges while iterating on, it ends as the unconverged
+    state where its iterations ran out.  Where noisy particle sinks leave k at 1e-3 of its level in a few cells, k and eps there
     contract slowly but steadily (0.97-0.99 per iteration with tracer-like sinks at
     alpha = 0.3), and the coupled step, started again from the upstream state, only repeated
     that contraction (rans/bench.py).
@@ -780,6 +782,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
             cap = hi if (r, m) == (relax, alpha_u) else int(hi * min(1.0 / min(r, m), 4.0))
             chunk = max(cap // 4, 1)
             limit, it, changes = cap, 0, []
+            at_cap = None  # the unconverged state where the iterations ran out, if iterated on
             try:
                 while it < limit:
                     ch = solver.iterate(st, hist, c0, h, src, laminar, r)
@@ -789,11 +792,16 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                     if it >= lo and ch < tol:
                         return st, True, it, min(r, m), cp
                     if it == limit and _still_converging(changes, chunk, tol, STATION_EXTENSION * cap - it):
-                        limit += chunk
+                        if at_cap is None:
+                            at_cap = (ch, st.copy(), it)
+                        limit = min(limit + chunk, STATION_EXTENSION * cap)
             except SolverDivergence:
-                if a + 1 == len(attempts) and best is None:
-                    raise
-                continue
+                if at_cap is None:
+                    if a + 1 == len(attempts) and best is None:
+                        raise
+                    continue
+                # diverged while iterating on: the attempt ends where its iterations ran out
+                ch, st, it = at_cap
             if best is None or ch < best[0]:
                 best = (ch, st, it, min(r, m), cp)
     finally:
@@ -802,12 +810,13 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
 
 
 def _still_converging(changes, chunk, tol, left):
-    """Whether an outer iteration is still converging toward ``tol``: its change fell over the
-    last ``chunk`` iterations, steadily enough that at that rate it reaches ``tol`` within
-    ``left`` more iterations (a slow contraction, not a wandering or stalled iteration)."""
-    if len(changes) <= chunk or left <= 0:
+    """Whether an outer iteration is still converging toward ``tol``: the largest change of its
+    last ``chunk`` iterations is below that of the ``chunk`` before, by a rate that reaches
+    ``tol`` within ``left`` more iterations (a slow contraction; a wandering iteration, whose
+    changes scatter over a band, keeps about the same maximum and is not iterated on)."""
+    if len(changes) < 2 * chunk or left <= 0:
         return False
-    now, before = changes[-1], changes[-1 - chunk]
+    now, before = max(changes[-chunk:]), max(changes[-2 * chunk:-chunk])
     if not (np.isfinite(now) and np.isfinite(before) and 0.0 < now < before):
         return False
     rate = math.log(now / before) / chunk  # < 0

@@ -219,20 +219,22 @@ def test_relaxation_is_halved_when_the_residual_stagnates(residuals, halved):
         assert loop.alpha == 0.15
 
 
-@pytest.mark.parametrize("residuals, cap, blocked, raised", [
-    ([1.2, 1.1, 1.3, 1.0], 0.3, False, True),     # noise below the tolerance 1.5: back to 0.3
-    ([1.2, 1.6, 1.3, 1.0], 0.3, False, False),    # one of the last W above the tolerance
-    ([1.2, 1.3, 1.0], 0.3, False, False),         # too few passes at this α to judge
-    ([1.2, 1.1, 1.3, 1.0], 0.15, False, False),   # the gas solve failed at 0.3: stays
-    ([1.2, 1.1, 1.3, 1.0], 0.3, True, False),     # recovered once and stagnated again: stays
+@pytest.mark.parametrize("residuals, cap, max_passes, raised", [
+    ([1.2, 1.1, 1.3, 1.0], 0.3, 40, True),     # noise below the tolerance 1.5: back to 0.3
+    ([1.2, 1.6, 1.3, 1.0], 0.3, 40, False),    # one of the last W above the tolerance
+    ([1.2, 1.3, 1.0], 0.3, 40, False),         # too few passes at this α to judge
+    ([1.2, 1.1, 1.3, 1.0], 0.15, 40, False),   # the gas solve failed at 0.3: stays
+    ([1.2, 1.1, 1.3, 1.0], 0.3, 20, False),    # 20 - 3 final - pass 14: < W early passes left
 ])
-def test_relaxation_is_raised_again_when_the_residual_is_below_the_tolerance(residuals, cap, blocked, raised):
+def test_relaxation_is_raised_again_when_the_residual_is_below_the_tolerance(residuals, cap, max_passes, raised):
     """The recovery rule (coupling module docstring): α halved by the stagnation rule is
-    doubled again once the residual sits below the tolerance but the loop has not converged."""
+    doubled again, once, when the residual sits below the tolerance but the loop has not
+    converged."""
     told = []
-    loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5}), notify=told.append)
+    loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5, "numerics.max_passes": max_passes,
+                                      "numerics.average_passes": 3}), notify=told.append)
     loop.history.residual = [float("nan"), 2.3, 2.4, 2.2, 2.5, 2.3, 2.4, 2.5, 2.2] + residuals
-    loop.alpha, loop.alpha_changed_at, loop.alpha_cap, loop.recovery_blocked = 0.15, 9, cap, blocked
+    loop.alpha, loop.alpha_changed_at, loop.alpha_cap = 0.15, 9, cap
     loop.pass_index = len(loop.history.residual) + 1
     loop._adapt_relaxation()
     assert loop.alpha == (0.3 if raised else 0.15)
@@ -242,11 +244,26 @@ def test_relaxation_is_raised_again_when_the_residual_is_below_the_tolerance(res
         loop.history.residual += [2.3, 2.4, 2.2, 2.5, 2.3, 2.4, 2.5, 2.2]
         loop.pass_index = len(loop.history.residual) + 1
         loop._adapt_relaxation()
-        assert loop.alpha == 0.15 and loop.recovery_blocked
+        assert loop.alpha == 0.15
         loop.history.residual += [1.2, 1.1, 1.3, 1.0]
         loop.pass_index = len(loop.history.residual) + 1
         loop._adapt_relaxation()
         assert loop.alpha == 0.15
+
+
+def test_the_recovery_doubles_alpha_once():
+    """0.3 -> 0.15 -> 0.075 by the stagnation rule: the recovery goes back to 0.15 only, not on
+    to 0.3, an α that already stagnated."""
+    loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5, "numerics.max_passes": 40}))
+    loop.history.residual = [float("nan")] + [2.3] * 16 + [1.2, 1.1, 1.3, 1.0]
+    loop.alpha, loop.alpha_changed_at = 0.075, 17
+    loop.pass_index = len(loop.history.residual) + 1
+    loop._adapt_relaxation()
+    assert loop.alpha == 0.15
+    loop.history.residual += [1.2, 1.1, 1.3, 1.0]
+    loop.pass_index = len(loop.history.residual) + 1
+    loop._adapt_relaxation()
+    assert loop.alpha == 0.15
 
 
 def test_a_failed_gas_solve_caps_the_recovery(monkeypatch):

@@ -322,3 +322,60 @@ def test_a_slowly_but_steadily_converging_station_iterates_on(monkeypatch, rate,
         assert f.station_iterations[7] == calls["simplec"] == 132
     else:
         assert f.station_coupled[7] and calls["simplec"] == 60
+
+
+def test_importing_eulag_makes_blas_single_threaded_unless_the_user_chose():
+    """rans/__init__.py: the dense block inversions of the march must not spread over OpenBLAS
+    threads (3.7x slower at a 40 x 80 section on busy cores); a user's own setting stays."""
+    import os
+    import subprocess
+    import sys
+
+    code = "import eulag, os, numpy; print(os.environ['OPENBLAS_NUM_THREADS'])"
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "1"
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "2"
+
+
+def test_a_station_that_diverges_while_iterating_on_keeps_the_state_where_its_iterations_ran_out(monkeypatch):
+    """Iterating on must not turn an unconverged station into a failed solve: an attempt that
+    diverges after its cap ends as the state at the cap (returned unconverged, as before)."""
+    from rans import solver as S
+
+    U = 10.0
+    m = PipeMesh.build(D, 0.3, "developing", axial_cells=12, radial_cells=8, azimuthal_cells=12,
+                       bulk_velocity=U, density=RHO, viscosity=MU)
+    orig = S._StationSolver._iterate
+    calls = {}
+
+    def slow_then_diverging(self, st, hist, c0, dx, src, laminar, relax_turb):
+        ch = orig(self, st, hist, c0, dx, src, laminar, relax_turb)
+        if self.station != 7:
+            return ch
+        key = (self.coupled, self.alpha_u, relax_turb)
+        calls[key] = calls.get(key, 0) + 1
+        if calls[key] > 70:
+            raise SolverDivergence("gas solve diverged: k = -1 (test)")
+        return max(ch, 1e-3 * 0.9 ** calls[key])
+
+    monkeypatch.setattr(S._StationSolver, "_iterate", slow_then_diverging)
+    f = solve(m, GAS, U, tol=1e-9, station_iterations=(2, 60))
+    assert not f.converged and f.station_iterations[7] == 60
+    assert set(calls) == {(False, 1.0, 1.0), (True, 1.0, 1.0)}  # SIMPLEC, then the coupled step
+    assert all(n == 71 for n in calls.values())
+
+
+def test_only_a_steady_contraction_counts_as_still_converging():
+    from rans.solver import _still_converging
+
+    n = np.arange(200)
+    assert _still_converging(list(1e-3 * 0.97 ** n), 50, 1e-6, 600)   # needs ~27 more
+    assert not _still_converging(list(1e-3 * 0.995 ** n), 50, 1e-6, 600)  # needs ~1200 more
+    # a wandering iteration: changes scattered over 1e-4..1e-3, whatever its last two values
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        wander = list(10.0 ** rng.uniform(-4.0, -3.0, 200))
+        assert not _still_converging(wander, 50, 1e-6, 600)
