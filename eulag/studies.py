@@ -240,9 +240,10 @@ def _open(path: Path):
 def _progress_printer(args, label: str, history: list):
     def progress(state):
         history.append(state)
+        t_gas, t_part = state.times.get("gas_solve", 0.0), state.times.get("lagrangian", 0.0)
         _log(args, f"    {label}: pass {state.index} ({state.phase}), residual {state.residual:.3g}, "
                    f"-dp/dx {state.pressure_gradient:.4g} Pa/m, {state.parcels} parcels, relaxation "
-                   f"{state.relaxation:g}, {state.times.get('gas_solve', 0) + state.times.get('lagrangian', 0):.1f} s")
+                   f"{state.relaxation:g}, {t_gas + t_part:.1f} s (gas {t_gas:.1f} s, particles {t_part:.1f} s)")
     return progress
 
 

@@ -219,6 +219,14 @@ def test_relaxation_is_halved_when_the_residual_stagnates(residuals, halved):
         assert loop.alpha == 0.15
 
 
+def _judge(loop, residuals):
+    """The passes with ``residuals`` have run: α is judged before the next one."""
+    loop.history.residual += residuals
+    loop.pass_index = len(loop.history.residual) + 1
+    loop._adapt_relaxation()
+    return loop.alpha
+
+
 @pytest.mark.parametrize("residuals, cap, max_passes, raised", [
     ([1.2, 1.1, 1.3, 1.0], 0.3, 40, True),     # noise below the tolerance 1.5: back to 0.3
     ([1.2, 1.6, 1.3, 1.0], 0.3, 40, False),    # one of the last W above the tolerance
@@ -233,37 +241,24 @@ def test_relaxation_is_raised_again_when_the_residual_is_below_the_tolerance(res
     told = []
     loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5, "numerics.max_passes": max_passes,
                                       "numerics.average_passes": 3}), notify=told.append)
-    loop.history.residual = [float("nan"), 2.3, 2.4, 2.2, 2.5, 2.3, 2.4, 2.5, 2.2] + residuals
+    loop.history.residual = [float("nan"), 2.3, 2.4, 2.2, 2.5, 2.3, 2.4, 2.5, 2.2]
     loop.alpha, loop.alpha_changed_at, loop.alpha_cap = 0.15, 9, cap
-    loop.pass_index = len(loop.history.residual) + 1
-    loop._adapt_relaxation()
-    assert loop.alpha == (0.3 if raised else 0.15)
+    assert _judge(loop, residuals) == (0.3 if raised else 0.15)
     assert [("raised again to 0.3" in t) for t in told] == ([True] if raised else [])
     if raised:
         # stagnating again at the recovered α halves it for good
-        loop.history.residual += [2.3, 2.4, 2.2, 2.5, 2.3, 2.4, 2.5, 2.2]
-        loop.pass_index = len(loop.history.residual) + 1
-        loop._adapt_relaxation()
-        assert loop.alpha == 0.15
-        loop.history.residual += [1.2, 1.1, 1.3, 1.0]
-        loop.pass_index = len(loop.history.residual) + 1
-        loop._adapt_relaxation()
-        assert loop.alpha == 0.15
+        assert _judge(loop, [2.3, 2.4, 2.2, 2.5, 2.3, 2.4, 2.5, 2.2]) == 0.15
+        assert _judge(loop, [1.2, 1.1, 1.3, 1.0]) == 0.15
 
 
 def test_the_recovery_doubles_alpha_once():
     """0.3 -> 0.15 -> 0.075 by the stagnation rule: the recovery goes back to 0.15 only, not on
     to 0.3, an α that already stagnated."""
     loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5, "numerics.max_passes": 40}))
-    loop.history.residual = [float("nan")] + [2.3] * 16 + [1.2, 1.1, 1.3, 1.0]
+    loop.history.residual = [float("nan")] + [2.3] * 16
     loop.alpha, loop.alpha_changed_at = 0.075, 17
-    loop.pass_index = len(loop.history.residual) + 1
-    loop._adapt_relaxation()
-    assert loop.alpha == 0.15
-    loop.history.residual += [1.2, 1.1, 1.3, 1.0]
-    loop.pass_index = len(loop.history.residual) + 1
-    loop._adapt_relaxation()
-    assert loop.alpha == 0.15
+    assert _judge(loop, [1.2, 1.1, 1.3, 1.0]) == 0.15
+    assert _judge(loop, [1.2, 1.1, 1.3, 1.0]) == 0.15
 
 
 def test_a_failed_gas_solve_caps_the_recovery(monkeypatch):
@@ -429,3 +424,15 @@ def test_convergence_waits_for_the_collision_momentum_to_settle():
     assert loop._converged_now()
     h.collision_momentum = [0.0, 0.2, 0.14, 0.135, 0.13, 0.125, 0.12, 0.115]
     assert not loop._converged_now()
+
+
+def test_the_relaxation_state_survives_a_checkpoint(tmp_path):
+    """α, the pass it last changed at, the recovery cap and whether the recovery was used are
+    restored on resume (they decide the next passes' α)."""
+    ck = tmp_path / "run.nc.checkpoint"
+    loop = CouplingLoop(small_case(), checkpoint=ck)
+    loop.step()
+    loop.alpha, loop.alpha_changed_at, loop.alpha_cap, loop.recovered = 0.075, 1, 0.15, True
+    loop._save()
+    back = CouplingLoop(small_case(), checkpoint=ck, resume=True)
+    assert (back.alpha, back.alpha_changed_at, back.alpha_cap, back.recovered) == (0.075, 1, 0.15, True)
