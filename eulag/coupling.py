@@ -40,8 +40,10 @@ stagnates again is halved for good), and not when fewer than W early passes are 
 averaged final passes would run at an α the loop has not judged).  At a small α
 the relaxed sources close only about α of their remaining gap per pass: η = 10 and the 0.3 m
 pipe, halved to 0.075 when their residual sat just above the tolerance, reached the residual
-of pure noise but still had 2.3 % and 1.3 % of −dp/dx to come after 40 passes (stability study,
-147a509).
+of pure noise but still had 2.3 % and 1.3 % of −dp/dx to come after 40 passes (stability runs
+at 707bbfd).  Re-run with the rule (abd53b2), the pipe converged in 35 passes; η = 10 did not:
+the residual is not independent of α (the pass's sources respond to the noise the relaxed
+sources put into the gas), and at the recovered 0.15 it rose to ~2 again (results/README.md).
 
 Convergence ("no longer changing beyond noise"): per cell the change of the relaxed sources,
 ΔS = α (S_pass − S_used_prev), is compared with its own statistical noise
@@ -471,8 +473,8 @@ class CouplingLoop:
         w = _STAGNATION_WINDOW
         r = np.asarray(self.history.residual[self.alpha_changed_at:], dtype=float)
         r = r[np.isfinite(r)]
-        tol = self.case.numerics.coupling_tolerance
         n = self.case.numerics
+        tol = n.coupling_tolerance
         early_left = n.max_passes - n.average_passes - self.pass_index
         if (r.size >= w and np.all(r[-w:] < tol) and self.alpha < self.alpha_cap
                 and not self.recovered and early_left >= w):

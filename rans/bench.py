@@ -5,10 +5,10 @@
 The developing base pipe (D = 30.5 mm, U0 = 10 m/s, inlet k = 1 m2/s2, 100 axial cells per m,
 20 x 40 cross-section, first cell y+ 30) is solved single phase, then with the sink of
 turbulence that 1 µm tracers at eta = 2.2 put on it, S_k = -(3/C_T) c_p eps (README of the
-stability study; c_p = eta rho, C_T = 0.24), relaxed by ``--relaxation`` as in the coupling loop's
+stability study; c_p = eta rho, C_T = 0.24 from particles.kernel), relaxed by ``--relaxation`` as in the coupling loop's
 first gas solve, and made noisy as a pass with few parcels samples it: per cell times
 Poisson(v)/v for ``--visits`` v (0: smooth).  The sink is linear in k (k_reference = the
-single-phase k, rans.Sources), and C_eps3 = 1.8 forms the epsilon sink.  Printed: wall time of
+single-phase k, rans.Sources), and C_eps3 = 1.8 (particles.tracking) forms the epsilon sink.  Printed: wall time of
 each solve, -dp/dx, whether every station converged, the stations retried with the coupled
 cross-flow step, the outer iterations, the smallest k.  This is where the march spends its
 time in the tracer and 50 µm scene passes of the studies (stations of near-laminar cells).
@@ -22,12 +22,12 @@ import time
 
 import numpy as np
 
+from particles.kernel import C_T  # T_L = C_T (2/3) k/eps (Sommerfeld 2001; PHYSICS.md §2.1, §12)
+from particles.tracking import C_EPS3  # S_eps = C_eps3 (eps/k) S_k (seed; PHYSICS.md §5.1, §12)
+
 from . import PipeMesh, solve
 from . import kepsilon as ke
 from .solver import GasProperties, Sources
-
-C_T = 0.24  # T_L = C_T (2/3) k / eps (particles.kernel)
-C_EPS3 = 1.8
 
 
 def run(length=1.0, relaxation=0.3, visits=1.0, seed=1):
