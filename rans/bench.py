@@ -1,6 +1,7 @@
 """Benchmark of the axial march under stiff, noisy particle sinks of turbulence.
 
     python -m rans.bench [--length 1.0] [--relaxation 0.3] [--visits 1] [--seed 1]
+                         [--section 20x40] [--direct]
 
 The developing base pipe (D = 30.5 mm, U0 = 10 m/s, inlet k = 1 m2/s2, 100 axial cells per m,
 20 x 40 cross-section, first cell y+ 30) is solved single phase, then with the sink of
@@ -10,8 +11,11 @@ first gas solve, and made noisy as a pass with few parcels samples it: per cell 
 Poisson(v)/v for ``--visits`` v (0: smooth).  The sink is linear in k (k_reference = the
 single-phase k, rans.Sources), and C_eps3 = 1.8 (particles.tracking) forms the epsilon sink.  Printed: wall time of
 each solve, -dp/dx, whether every station converged, the stations retried with the coupled
-cross-flow step, the outer iterations, the smallest k.  This is where the march spends its
+cross-flow step, the outer iterations, the smallest k, and the linear solves (factorisations
+and refinement sweeps of ``rans.linalg.LaggedFactor``).  This is where the march spends its
 time in the tracer and 50 µm scene passes of the studies (stations of near-laminar cells).
+``--section 40x80`` solves the 4x cells of the stability study; ``--direct`` factorises every
+matrix (``rans.solver.REUSE_FACTORISATION = False``), for comparison.
 """
 
 from __future__ import annotations
@@ -27,14 +31,38 @@ from particles.tracking import C_EPS3  # S_eps = C_eps3 (eps/k) S_k (seed; PHYSI
 
 from . import PipeMesh, solve
 from . import kepsilon as ke
+from . import operators, solver
 from .solver import GasProperties, Sources
 
 
-def run(length=1.0, relaxation=0.3, visits=1.0, seed=1):
+class _Counted:
+    """Counts the linear solves of the lagged factorisations made while it is active."""
+
+    def __enter__(self):
+        self.made = []
+        self._orig = operators.Section.lagged_factor
+        made, orig = self.made, self._orig
+
+        def lagged_factor(sec, **kw):
+            f = orig(sec, **kw)
+            made.append(f)
+            return f
+
+        operators.Section.lagged_factor = lagged_factor
+        return self
+
+    def __exit__(self, *exc):
+        operators.Section.lagged_factor = self._orig
+
+    def totals(self):
+        return {k: sum(getattr(f, k) for f in self.made) for k in ("factorisations", "solves", "sweeps")}
+
+
+def run(length=1.0, relaxation=0.3, visits=1.0, seed=1, section=(20, 40)):
     D, U, k0, eta = 0.0305, 10.0, 1.0, 2.2
     gas = GasProperties(1.205, 1.81e-5)
-    mesh = PipeMesh.build(D, length, "developing", axial_cells=int(round(100 * length)), radial_cells=20,
-                          azimuthal_cells=40, first_cell_yplus=30.0, bulk_velocity=U,
+    mesh = PipeMesh.build(D, length, "developing", axial_cells=int(round(100 * length)), radial_cells=section[0],
+                          azimuthal_cells=section[1], first_cell_yplus=30.0, bulk_velocity=U,
                           density=gas.density, viscosity=gas.viscosity)
     eps0 = ke.inlet_epsilon(k0, D)
     t = time.perf_counter()
@@ -57,9 +85,18 @@ def main(argv=None):
     ap.add_argument("--relaxation", type=float, default=0.3, help="source under-relaxation")
     ap.add_argument("--visits", type=float, default=1.0, help="Poisson mean of the sink noise (0: smooth)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--section", default="20x40", help="radial x azimuthal cells")
+    ap.add_argument("--direct", action="store_true", help="factorise every matrix (no lagged factorisations)")
     a = ap.parse_args(argv)
-    single, t1, stiff, t2 = run(a.length, a.relaxation, a.visits, a.seed)
-    print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}")
+    section = tuple(int(v) for v in a.section.lower().split("x"))
+    solver.REUSE_FACTORISATION = not a.direct
+    with _Counted() as counted:
+        single, t1, stiff, t2 = run(a.length, a.relaxation, a.visits, a.seed, section)
+    print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}; "
+          f"{section[0]}x{section[1]} section, " + ("direct solves" if a.direct else
+                                                     "lagged factorisations: {factorisations} factorisations, "
+                                                     "{solves} solves, {sweeps} refinement sweeps (both solves)"
+                                                     .format(**counted.totals())))
     print(f"single phase: {t1:.1f} s, -dp/dx {single.pressure_gradient.mean():.3f} Pa/m, "
           f"{int(single.station_iterations.sum())} iterations")
     print(f"tracer sinks (relaxation {a.relaxation:g}, visits {a.visits:g}): {t2:.1f} s, -dp/dx "

@@ -25,7 +25,7 @@ import math
 import numpy as np
 import scipy.sparse as sp
 
-from .linalg import BlockStructure
+from .linalg import BlockStructure, LaggedFactor
 
 __all__ = ["Section"]
 
@@ -170,6 +170,11 @@ class Section:
         """Direct factorisation of :meth:`matrix` (block-tridiagonal LU over the rings,
         :mod:`rans.linalg`); the result has ``.solve(b)``."""
         return self._blocks.factor(diag, a_PN, a_NP)
+
+    def lagged_factor(self, **kw):
+        """A :class:`rans.linalg.LaggedFactor` for matrices of this section (one per equation:
+        it solves with the factorisation of that equation's earlier matrix, refined)."""
+        return LaggedFactor(self._blocks, **kw)
 
     def transport(self, flux, gamma_f, scheme="upwind"):
         """Convection-diffusion coefficients for the non-conservative (continuity-subtracted) form.

@@ -196,6 +196,9 @@ STATION_RELAXATION = ((0.5, 1.0), (0.5, 0.7), (0.2, 0.5), (0.05, 0.3))
 #: a station still converging when its iterations run out iterates on, a quarter of them at a
 #: time, up to this many times its iterations (_march_station)
 STATION_EXTENSION = 4
+#: solve the cross-section equations with lagged factorisations, refined (rans.linalg.LaggedFactor);
+#: False: factorise every matrix (the reference the tests compare with)
+REUSE_FACTORISATION = True
 K_FLOOR = 1e-10  # k >= K_FLOOR U_b^2 and eps >= C_mu k_floor^(3/2) / D after every solve (PHYSICS.md 6.4)
 
 
@@ -223,6 +226,12 @@ class _StationSolver:
         self.limited = 0
         self.floored = 0
         self._coupled_blocks = None  # constant blocks of the coupled cross-flow system
+        # one lagged factorisation per equation, carried across iterations and stations
+        # (rans.linalg.LaggedFactor: the direct solution to 1e-10 of each cell's terms)
+        if REUSE_FACTORISATION:
+            self._factor = {name: self.sec.lagged_factor().factor for name in ("momentum", "pressure", "k", "eps")}
+        else:
+            self._factor = dict.fromkeys(("momentum", "pressure", "k", "eps"), self.sec.factor)
 
     # -------------------------------------------------------------------- checks
     def check(self, name, values, positive=False):
@@ -299,7 +308,7 @@ class _StationSolver:
         au = self.alpha_u
         relax_u = (1.0 - au) / au * diag_m
         diag_m = diag_m / au
-        lu = sec.factor(diag_m, aPN, aNP)
+        lu = self._factor["momentum"](diag_m, aPN, aNP)
 
         # axial velocity, mass flow fixed through the mean pressure gradient G = -dp/dx
         b = ax * hist["ux"] + src["mx"] * A + relax_u * st.ux + sec.radial_gradient_correction(st.ux, mu_f)
@@ -374,7 +383,7 @@ class _StationSolver:
             if relax_turb < 1.0:  # implicit (Patankar) under-relaxation
                 bk += (1.0 - relax_turb) / relax_turb * dk * st.k
                 dk = dk / relax_turb
-            k_new = sec.factor(dk, kPN, kNP).solve(bk)
+            k_new = self._factor["k"](dk, kPN, kNP).solve(bk)
             self.check("k", k_new, positive=True)
             low_k = k_new < self.k_floor
             # epsilon equation (fixed value in the wall cells)
@@ -392,7 +401,7 @@ class _StationSolver:
             big = 1e12 * de[wall]
             de[wall] += big
             be[wall] += big * ke.wall_epsilon(k_new[wall], yP)
-            eps_new = sec.factor(de, ePN, eNP).solve(be)
+            eps_new = self._factor["eps"](de, ePN, eNP).solve(be)
             self.check("epsilon", eps_new, positive=True)
             # floors (PHYSICS.md 6.4) where strong particle sinks laminarise a pocket of the
             # flow; k and eps are positive here already, the floors keep nu_t and k/eps finite.
@@ -444,7 +453,7 @@ class _StationSolver:
         coef = rho * d_f * sec.S / sec.delta
         diag_p = sec.fsum @ coef
         diag_p[sec.wall[0]] += diag_p.max() * 1e3  # pin the level of p' (pure Neumann problem)
-        pc = sec.factor(diag_p, -coef, -coef).solve(-imbalance)
+        pc = self._factor["pressure"](diag_p, -coef, -coef).solve(-imbalance)
         flux = flux + coef * (pc[sec.P] - pc[sec.N])
         cz, cy = sec.reconstruct(-sec.normal_difference(pc), np.zeros(nwall))
         uz = uz + dP * cz
