@@ -1,7 +1,7 @@
 """Benchmark of the axial march under stiff, noisy particle sinks of turbulence.
 
     python -m rans.bench [--length 1.0] [--relaxation 0.3] [--visits 1] [--seed 1]
-                         [--section 20x40] [--direct]
+                         [--section 20x40] [--direct] [--single]
 
 The developing base pipe (D = 30.5 mm, U0 = 10 m/s, inlet k = 1 m2/s2, 100 axial cells per m,
 20 x 40 cross-section, first cell y+ 30) is solved single phase, then with the sink of
@@ -15,7 +15,8 @@ cross-flow step, the outer iterations, the smallest k, and the linear solves (fa
 and refinement sweeps of ``rans.linalg.LaggedFactor``).  This is where the march spends its
 time in the tracer and 50 µm scene passes of the studies (stations of near-laminar cells).
 ``--section 40x80`` solves the 4x cells of the stability study; ``--direct`` factorises every
-matrix (``rans.solver.REUSE_FACTORISATION = False``), for comparison.
+matrix (``rans.solver.REUSE_FACTORISATION = False``), for comparison; ``--single`` stops after
+the single-phase solve.
 """
 
 from __future__ import annotations
@@ -54,11 +55,12 @@ class _Counted:
     def __exit__(self, *exc):
         operators.Section.lagged_factor = self._orig
 
-    def totals(self):
-        return {k: sum(getattr(f, k) for f in self.made) for k in ("factorisations", "solves", "sweeps")}
+    def totals(self, made=None):
+        return {k: sum(getattr(f, k) for f in (self.made if made is None else made))
+                for k in ("factorisations", "solves", "sweeps")}
 
 
-def run(length=1.0, relaxation=0.3, visits=1.0, seed=1, section=(20, 40)):
+def run(length=1.0, relaxation=0.3, visits=1.0, seed=1, section=(20, 40), sinks=True):
     D, U, k0, eta = 0.0305, 10.0, 1.0, 2.2
     gas = GasProperties(1.205, 1.81e-5)
     mesh = PipeMesh.build(D, length, "developing", axial_cells=int(round(100 * length)), radial_cells=section[0],
@@ -68,6 +70,8 @@ def run(length=1.0, relaxation=0.3, visits=1.0, seed=1, section=(20, 40)):
     t = time.perf_counter()
     single = solve(mesh, gas, U, k0, eps0)
     t_single = time.perf_counter() - t
+    if not sinks:
+        return single, t_single, None, None
     noise = 1.0
     if visits > 0:
         noise = np.random.default_rng(seed).poisson(visits, single.k.shape) / visits
@@ -87,23 +91,29 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--section", default="20x40", help="radial x azimuthal cells")
     ap.add_argument("--direct", action="store_true", help="factorise every matrix (no lagged factorisations)")
+    ap.add_argument("--single", action="store_true", help="the single-phase solve only")
     a = ap.parse_args(argv)
     section = tuple(int(v) for v in a.section.lower().split("x"))
     solver.REUSE_FACTORISATION = not a.direct
     with _Counted() as counted:
-        single, t1, stiff, t2 = run(a.length, a.relaxation, a.visits, a.seed, section)
-    print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}; "
-          f"{section[0]}x{section[1]} section, " + ("direct solves" if a.direct else
-                                                     "lagged factorisations: {factorisations} factorisations, "
-                                                     "{solves} solves, {sweeps} refinement sweeps (both solves)"
-                                                     .format(**counted.totals())))
-    print(f"single phase: {t1:.1f} s, -dp/dx {single.pressure_gradient.mean():.3f} Pa/m, "
-          f"{int(single.station_iterations.sum())} iterations")
-    print(f"tracer sinks (relaxation {a.relaxation:g}, visits {a.visits:g}): {t2:.1f} s, -dp/dx "
-          f"{stiff.pressure_gradient.mean():.4f} Pa/m, converged {stiff.converged}, stations that "
-          f"kept the coupled cross-flow step {int(stiff.station_coupled.sum())}, iterations (kept attempts) "
-          f"{int(stiff.station_iterations.sum())}, min k {stiff.k.min():.3g} m2/s2")
+        single, t1, stiff, t2 = run(a.length, a.relaxation, a.visits, a.seed, section, sinks=not a.single)
 
+    def solves(made):
+        if a.direct:
+            return "direct solves"
+        return "{factorisations} factorisations for {solves} solves, {sweeps} refinement sweeps".format(
+            **counted.totals(made))
+
+    print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}; "
+          f"{section[0]}x{section[1]} section, {a.length:g} m")
+    print(f"single phase: {t1:.1f} s, -dp/dx {single.pressure_gradient.mean():.3f} Pa/m, "
+          f"{int(single.station_iterations.sum())} iterations; {solves(counted.made[:4])}")
+    if stiff is not None:
+        print(f"tracer sinks (relaxation {a.relaxation:g}, visits {a.visits:g}): {t2:.1f} s, -dp/dx "
+              f"{stiff.pressure_gradient.mean():.4f} Pa/m, converged {stiff.converged}, stations that "
+              f"kept the coupled cross-flow step {int(stiff.station_coupled.sum())}, iterations (kept "
+              f"attempts) {int(stiff.station_iterations.sum())}, min k {stiff.k.min():.3g} m2/s2; "
+              f"{solves(counted.made[4:])}")
 
 if __name__ == "__main__":
     main()

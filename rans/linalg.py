@@ -17,9 +17,9 @@ section that is not block tridiagonal in this ordering.
 :class:`LaggedFactor` saves most factorisations of the march: the matrices of a station's
 outer iterations (and of the next station) change little from one iteration to the next, so
 it solves with the factorisation of an earlier matrix and refines (x += LU⁻¹ (b − A x)) until
-every cell's equation holds to ``rtol`` of its own terms, factorising afresh only when a few
-sweeps do not get there.  The solution is the direct one to that tolerance (1e-10 by default,
-far below the outer iteration's tolerance).
+the error estimated in every cell is below ``rtol`` of its value (with a floor for fields
+that cross zero), factorising afresh only when a few sweeps do not get there.  The solution
+is the direct one to that tolerance (1e-10 by default, far below the outer iteration's).
 """
 
 from __future__ import annotations
@@ -168,22 +168,28 @@ class LaggedFactor:
 
     ``factor(diag, a_PN, a_NP)`` records the matrix and returns ``self``; ``solve(b)`` starts
     from the held factorisation (of an earlier matrix) and refines with it,
-    x ← x + LU⁻¹ (b − A x), until the error it leaves in any cell is below ``rtol`` of that
-    cell's value (plus 10⁻⁶ of the largest value, for a pressure correction that crosses
-    zero): a cell whose k is 10⁻⁶ of the core's is solved as exactly as the core.  The
-    refinement contracts geometrically (by ~10⁻² per sweep for matrices 0.1 % apart), so the
-    error a sweep leaves is estimated as its step δ_m times the contraction δ_m/δ_{m−1}
-    (per-cell maxima relative to x).  When ``max_sweeps`` refinements will not get there (the
-    contraction so far says so), the current matrix is factorised and solved directly, and so
-    are the next 1, 3, 7, … (up to 32) matrices while the refinement keeps failing; when the
-    last solve needed more than ``refactor_after`` sweeps, the next matrix is factorised at
-    once (the matrices drift away from the held one, and a factorisation costs about twenty
-    solves of a 20 × 40 section).  ``factorisations``, ``solves`` and ``sweeps`` count what was done
-    (for benchmarks)."""
+    x ← x + LU⁻¹ (b − A x), until the error it leaves in any cell is estimated below ``rtol``
+    of that cell's |x| + ``floor`` · max|x| (the floor, a fraction of the largest value, for
+    fields that cross zero: cross flow, pressure correction; k and ε take a small one, so a
+    cell whose k is 10⁻⁶ of the core's is solved almost as exactly as the core).  The
+    refinement contracts geometrically (by ~10⁻² per sweep for matrices 0.1 % apart): the
+    error sweep m leaves is estimated as δ_m ρ/(1 − ρ), δ_m its step and ρ = δ_m/δ_{m−1}
+    (per-cell maxima relative to the scale above), with ρ taken at least 10⁻² in the second
+    sweep, whose first ratio is often not yet the asymptotic one.  When ``max_sweeps``
+    refinements will not get there (the contraction so far says so), the current matrix is
+    factorised and solved directly, and so are the next 1, 3, 7, … (up to 32) matrices while
+    the refinement keeps failing; when the last solve needed more than ``refactor_after``
+    sweeps, the next matrix is factorised at once (the matrices drift away from the held
+    one, and a factorisation costs about twenty solves of a 20 × 40 section).
+    ``factorisations``, ``solves``, ``refined`` (solves accepted after refinement) and
+    ``sweeps`` count what was done (for benchmarks and tests)."""
 
-    def __init__(self, blocks, rtol=1e-10, max_sweeps=4, refactor_after=2):
+    def __init__(self, blocks, rtol=1e-10, floor=1e-3, max_sweeps=4, refactor_after=2):
+        if not (rtol > 0.0 and floor >= 0.0 and max_sweeps >= 1 and refactor_after >= 0):
+            raise ValueError("LaggedFactor needs rtol > 0, floor >= 0, max_sweeps >= 1, refactor_after >= 0")
         self._blocks = blocks
         self.rtol = float(rtol)
+        self.floor = float(floor)
         self.max_sweeps = int(max_sweeps)
         self.refactor_after = int(refactor_after)
         self._lu = None
@@ -194,6 +200,7 @@ class LaggedFactor:
         self._backoff = 0
         self.factorisations = 0
         self.solves = 0
+        self.refined = 0
         self.sweeps = 0
 
     def factor(self, diag, a_PN, a_NP):
@@ -215,6 +222,8 @@ class LaggedFactor:
     def solve(self, b):
         b = np.ascontiguousarray(b, dtype=np.float64)
         self.solves += 1
+        if self._lu is None:  # the last factorisation raised: try the current matrix again
+            self._refactor()
         if self._fresh:
             return self._lu.solve(b)
         diag, a_PN, a_NP = self._coef
@@ -226,18 +235,19 @@ class LaggedFactor:
             _residual(diag, a_PN, a_NP, P, N, x, b, r)
             dx = self._lu.solve(r)
             x += dx
-            step = _relative_step(dx, x)
+            step = _relative_step(dx, x, self.floor)
             if not step <= 1e300:
                 break
-            rho = step / last  # contraction per sweep (from the second on)
-            # the error this refinement leaves ≈ step · rho
-            if step <= self.rtol or (sweep > 1 and step * rho <= self.rtol):
-                self.sweeps += sweep
-                self._last_sweeps = sweep
-                self._backoff = 0
-                return x
-            if sweep > 1 and (rho >= 1.0 or step * rho ** (self.max_sweeps - sweep + 1) > self.rtol):
-                break  # will not get there within max_sweeps
+            if step <= self.rtol * 1e-2:  # (an exact factorisation: nothing left to estimate)
+                return self._accept(x, sweep)
+            if sweep > 1:
+                rho = step / last  # contraction per sweep
+                if rho < 1.0:
+                    rho_e = max(rho, 1e-2) if sweep == 2 else rho
+                    if step * rho_e / (1.0 - rho_e) <= self.rtol:
+                        return self._accept(x, sweep)
+                if rho >= 1.0 or step * rho ** (self.max_sweeps - sweep + 1) > self.rtol:
+                    break  # will not get there within max_sweeps
             last = step
         # factorise afresh, and the next matrices too, for a stretch that doubles while the
         # refinement keeps failing (stiff stations, whose matrices change fast)
@@ -246,6 +256,13 @@ class LaggedFactor:
         self._skip = self._backoff
         self._refactor()
         return self._lu.solve(b)
+
+    def _accept(self, x, sweeps):
+        self.sweeps += sweeps
+        self.refined += 1
+        self._last_sweeps = sweeps
+        self._backoff = 0
+        return x
 
 
 @njit(cache=True)
@@ -259,20 +276,20 @@ def _residual(diag, a_PN, a_NP, P, N, x, b, r):
 
 
 @njit(cache=True)
-def _relative_step(dx, x):
-    """max_i |dx_i| / (|x_i| + 10⁻⁶ max_j |x_j|): the relative change of the last refinement,
-    per cell (the floor: a pressure correction crosses zero); inf if not finite."""
+def _relative_step(dx, x, floor):
+    """max_i |dx_i| / (|x_i| + floor · max_j |x_j|): the relative change of the last
+    refinement, per cell; inf if not finite."""
     big = 0.0
     for i in range(x.size):
         big = max(big, abs(x[i]))
-    floor = 1e-6 * big
+    lo = floor * big
     worst = 0.0
     for i in range(x.size):
         a = abs(dx[i])
         if not a <= 1e300:
             return np.inf
         if a > 0.0:
-            s = abs(x[i]) + floor
+            s = abs(x[i]) + lo
             if s > 0.0:
                 worst = max(worst, a / s)
             else:

@@ -27,7 +27,6 @@ def axis_value(mesh, section):
 
 
 def _sectors(mesh, top):
-    nt = mesh.nt
     target = 0.5 * np.pi if top else 1.5 * np.pi
     d = np.abs((mesh.theta - target + np.pi) % (2 * np.pi) - np.pi)
     order = np.argsort(d)

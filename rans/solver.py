@@ -227,9 +227,12 @@ class _StationSolver:
         self.floored = 0
         self._coupled_blocks = None  # constant blocks of the coupled cross-flow system
         # one lagged factorisation per equation, carried across iterations and stations
-        # (rans.linalg.LaggedFactor: the direct solution to 1e-10 of each cell's terms)
+        # (rans.linalg.LaggedFactor: the direct solution to 1e-10 per cell, relative to the cell's
+        # value, with a floor of 1e-3 of the largest for the cross flow and pressure correction
+        # that cross zero, and 1e-8 for k and eps, which span decades and stay positive)
         if REUSE_FACTORISATION:
-            self._factor = {name: self.sec.lagged_factor().factor for name in ("momentum", "pressure", "k", "eps")}
+            self._factor = {name: self.sec.lagged_factor(floor=floor).factor
+                            for name, floor in (("momentum", 1e-3), ("pressure", 1e-3), ("k", 1e-8), ("eps", 1e-8))}
         else:
             self._factor = dict.fromkeys(("momentum", "pressure", "k", "eps"), self.sec.factor)
 
