@@ -238,7 +238,7 @@ class LaggedFactor:
             step = _relative_step(dx, x, self.floor)
             if not step <= 1e300:
                 break
-            if step <= self.rtol * 1e-2:  # (an exact factorisation: nothing left to estimate)
+            if step <= self.rtol * 1e-2:  # so small a step leaves < rtol even at slow contraction
                 return self._accept(x, sweep)
             if sweep > 1:
                 rho = step / last  # contraction per sweep
