@@ -63,7 +63,7 @@ from collisions.wall import (WALL_REBOUND, WALL_ROLLING, WALL_SLIDING, WallOptio
 
 from . import forces as fl
 from .fields import F_DKX, F_EPS, F_K, F_UX, F_WX, NF, interpolate
-from .layout import (A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
+from .layout import (A_BETA, A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP,
                      B_RESIDENCE, B_WALL, B_WEIGHT, NBUD, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP,
                      C_REBOUNDS, C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK,
@@ -623,6 +623,7 @@ def make_tracker(options=PhysicsOptions()):
                         out[base + A_NWW + 2] += wn * omega[2] * omega[2]
                     out[base + A_VISITS] += 1.0
                     out[base + A_KSEEN] += wn * kseen
+                    out[base + A_BETA] += wmf / tau_step
                 if inside < 1.0:  # the part beyond the inlet/outlet plane: its impulse stays in the pipe
                     base = last * NACC
                     rest = 1.0 - inside

@@ -27,7 +27,8 @@ A_NW = 12  # 12..14 Σ Ṅ δt ω_i       [rad]        → mean spin
 A_NWW = 15  # 15..17 Σ Ṅ δt ω_i²     [rad/s]      → spin rms
 A_VISITS = 18  # segments sampled (unweighted)     → poorly sampled cells
 A_KSEEN = 19  # Σ Ṅ δt ½|u′_F|²          [m2/s]      → ÷ A_WN: turbulent energy the particles see
-NACC = 20
+A_BETA = 20  # Σ Ṅ m δt / τ_p            [kg/s]      → ÷ V: drag coefficient β = −∂S/∂U of the source
+NACC = 21
 
 # ---------------------------------------------------------------- wall faces (x, theta)
 W_COUNT = 0  # Σ Ṅ over impacts             [1/s]

@@ -26,7 +26,7 @@ from collisions.wall import minimum_bounce_speed
 
 from .fields import FieldTable
 from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker
-from .layout import (A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
+from .layout import (A_BETA, A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP, B_RESIDENCE,
                      B_WALL, B_WEIGHT, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP, C_REBOUNDS,
                      C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK, CS_RMS, CS_U,
@@ -199,6 +199,13 @@ class Sample:
 
     def momentum_source_stderr(self, c):
         return self._sum_stderr(A_J + c) / self.volume
+
+    @property
+    def drag_coefficient(self):
+        """β = (1/V) Σ Ṅ m δt/τ_p [kg m-3 s-1]: how the momentum source falls as the gas
+        velocity the particles see rises, −∂S/∂U at fixed particle velocities (τ_p with the
+        drag factor of each step); the coupling loop applies the source linearised with it."""
+        return self._acc(A_BETA) / self.volume
 
     @property
     def k_source(self):

@@ -72,6 +72,14 @@ class Sources:
     through zero.  Without references they are linearised about the current iterate
     (Patankar), and a sink larger than the flow can sustain stops the solve with a diagnosis.
 
+    drag, velocity_reference (optional, (nx, nr, nt) [kg m-3 s-1] and (3, nx, nr, nt) [m s-1]):
+    the momentum source linearised in the gas velocity, S(U) = momentum + drag (U_ref − U)
+    (drag = −∂S/∂U of the particle drag, sampled with the source; U_ref the gas velocity it was
+    sampled in).  The part −drag U is implicit (on the diagonal of the momentum equations), so a
+    dense particle layer that brakes the gas cannot overshoot it into reversed flow; where
+    U = U_ref the applied source is ``momentum`` exactly, so the coupled fixed point is that of
+    the explicit source (the Rhie-Chow weights leave drag out for the same reason).
+
     c_eps3 (optional): the particle dissipation source is the closure C_eps3 (eps/k) S_k
     (PHYSICS.md 5.1), evaluated in the solve with the iterate's eps/k, as C_eps1 (eps/k) P_k
     is: the sink part of S_k (rate -S_k/k_reference) gives the linear eps sink of rate
@@ -88,11 +96,21 @@ class Sources:
     k_reference: np.ndarray = None
     epsilon_reference: np.ndarray = None
     c_eps3: float | None = None
+    drag: np.ndarray = None
+    velocity_reference: np.ndarray = None
 
     @classmethod
     def zeros(cls, mesh):
         s = mesh.shape
         return cls(np.zeros((3,) + s), np.zeros(s), np.zeros(s))
+
+    def applied_momentum(self, ux, uy, uz):
+        """The momentum source (3, nx, nr, nt) [N m-3] the solve applies in the gas velocity
+        (ux, uy, uz): ``momentum`` + drag (U_ref − U), or ``momentum`` without drag."""
+        if self.drag is None:
+            return self.momentum.copy()
+        u = np.stack([ux, uy, uz])
+        return self.momentum + self.drag * (self.velocity_reference - u)
 
     def applied_epsilon(self, k, epsilon):
         """The dissipation source [W m-3 s-1] the solve applies in the gas field (k, epsilon):
@@ -307,14 +325,22 @@ class _StationSolver:
         diag_m[wall] += cwL
         aNP = aNP.copy()
         aNP[sec.wall_inner_faces] -= bwL
+        # particle drag linearised in U (Sources.drag): -beta U implicit, beta U_ref explicit
+        beta = src["beta"]
+        beta_A = 0.0 if beta is None else beta * A
+        diag_m = diag_m + beta_A
         # implicit under-relaxation (periodic mode; 1 in the march)
         au = self.alpha_u
         relax_u = (1.0 - au) / au * diag_m
         diag_m = diag_m / au
         lu = self._factor["momentum"](diag_m, aPN, aNP)
 
+        def explicit_drag(c):
+            return 0.0 if beta is None else beta_A * src["uref"][c]
+
         # axial velocity, mass flow fixed through the mean pressure gradient G = -dp/dx
-        b = ax * hist["ux"] + src["mx"] * A + relax_u * st.ux + sec.radial_gradient_correction(st.ux, mu_f)
+        b = (ax * hist["ux"] + src["mx"] * A + explicit_drag(0) + relax_u * st.ux
+             + sec.radial_gradient_correction(st.ux, mu_f))
         u1 = lu.solve(b)
         u2 = lu.solve(A.copy())
         mdot_target = self.Ub * self.area_total
@@ -326,8 +352,8 @@ class _StationSolver:
         fn = sec.interp_mid(src["fz"]) * sec.nz + sec.interp_mid(src["fy"]) * sec.ny
         un = (cwL * (st.uz[wall] * sec.wall_nz + st.uy[wall] * sec.wall_ny)
               - bwL * (st.uz[inner] * sec.wall_nz + st.uy[inner] * sec.wall_ny))
-        bz = ax * hist["uz"] + relax_u * st.uz + sec.radial_gradient_correction(st.uz, mu_f)
-        by = ax * hist["uy"] + relax_u * st.uy + sec.radial_gradient_correction(st.uy, mu_f)
+        bz = ax * hist["uz"] + explicit_drag(2) + relax_u * st.uz + sec.radial_gradient_correction(st.uz, mu_f)
+        by = ax * hist["uy"] + explicit_drag(1) + relax_u * st.uy + sec.radial_gradient_correction(st.uy, mu_f)
         # wall: shear acts on the tangential velocity only; the normal part of the implicit
         # wall stencil is given back explicitly
         bz[wall] += un * sec.wall_nz
@@ -339,7 +365,8 @@ class _StationSolver:
             d_rc = A / (diag + np.bincount(wall, cwL, minlength=A.size))
             uz, uy, p, flux = self._cross_flow_coupled(st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part, d_rc)
         else:
-            uz, uy, p, flux = self._cross_flow_simplec(st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part)
+            uz, uy, p, flux = self._cross_flow_simplec(st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part,
+                                                       beta_A / au)
         self.check("u_y", uy)
         self.check("u_z", uz)
 
@@ -435,8 +462,12 @@ class _StationSolver:
 
 
     # -------------------------------------------------------------------- cross-flow solvers
-    def _cross_flow_simplec(self, st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part):
-        """One SIMPLEC step: momentum predictor, momentum-interpolated fluxes, pressure correction."""
+    def _cross_flow_simplec(self, st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part, drag_diag=0.0):
+        """One SIMPLEC step: momentum predictor, momentum-interpolated fluxes, pressure correction.
+
+        ``drag_diag``: the linearised particle drag's part of ``diag_m``, left out of the
+        momentum-interpolation weights so that the fluxes at U = U_ref are those of the
+        explicit source (Sources.drag)."""
         sec, rho, A = self.sec, self.rho, self.sec.area
         nwall = sec.wall.size
         g = -sec.normal_difference(st.p) + fn
@@ -444,7 +475,7 @@ class _StationSolver:
         uz = lu.solve(bz + A * Rz)
         uy = lu.solve(by + A * Ry)
         offsum = sec._sum_P @ np.abs(aPN) + sec._sum_N @ np.abs(aNP)
-        red = diag_m - offsum
+        red = diag_m - drag_diag - offsum
         red = np.where(red > 1e-3 * diag_m, red, diag_m)
         dP = A / red
         d_f = sec.interp(dP)
@@ -505,7 +536,8 @@ class _StationSolver:
 def _source_slices(sources, i, n):
     if sources is None:
         z = np.zeros(n)
-        return {"mx": z, "fy": z, "fz": z, "k": z, "eps": z, "k_ref": None, "eps_ref": None, "c_eps3": None}
+        return {"mx": z, "fy": z, "fz": z, "k": z, "eps": z, "k_ref": None, "eps_ref": None, "c_eps3": None,
+                "beta": None, "uref": None}
     m = sources.momentum
     return {
         "mx": m[0, i].ravel(),
@@ -516,6 +548,8 @@ def _source_slices(sources, i, n):
         "k_ref": None if sources.k_reference is None else sources.k_reference[i].ravel(),
         "eps_ref": None if sources.epsilon_reference is None else sources.epsilon_reference[i].ravel(),
         "c_eps3": sources.c_eps3,
+        "beta": None if sources.drag is None else sources.drag[i].ravel(),
+        "uref": None if sources.drag is None else [sources.velocity_reference[c, i].ravel() for c in range(3)],
     }
 
 
@@ -836,8 +870,15 @@ def _still_converging(changes, chunk, tol, left):
 
 
 def _check_sources(mesh, sources):
-    for name, arr in (("momentum", sources.momentum), ("k", sources.k), ("epsilon", sources.epsilon)):
-        want = (3,) + mesh.shape if name == "momentum" else mesh.shape
+    arrays = [("momentum", sources.momentum), ("k", sources.k), ("epsilon", sources.epsilon)]
+    if sources.drag is not None:
+        if sources.velocity_reference is None:
+            raise ValueError("a drag source needs its velocity_reference (the gas velocity it was sampled in)")
+        arrays += [("drag", sources.drag), ("velocity_reference", sources.velocity_reference)]
+        if np.any(sources.drag < 0.0):
+            raise ValueError(f"drag coefficient is negative (min {sources.drag.min():g}); it is a sum of m/tau_p >= 0")
+    for name, arr in arrays:
+        want = (3,) + mesh.shape if name in ("momentum", "velocity_reference") else mesh.shape
         if arr.shape != want:
             raise ValueError(f"{name} source has shape {arr.shape}, the mesh needs {want}")
         bad = ~np.isfinite(arr)

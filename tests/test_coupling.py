@@ -144,6 +144,30 @@ def test_relaxation_carries_the_previous_sinks_to_the_present_turbulence():
     assert src.c_eps3 == loop.case.physics.c_eps3 and not np.any(src.epsilon)
 
 
+def test_the_relaxed_momentum_source_is_kept_as_applied_in_the_new_gas():
+    """Linearised drag: the gas solve applies S_used + β (U_ref − U); what the loop keeps after
+    it is that source in the new gas field (U_ref = the new U), with β blended like S."""
+    loop = CouplingLoop(small_case())
+    loop.step()
+    first = loop.sources
+    beta1 = loop.last_sample.drag_coefficient
+    np.testing.assert_allclose(first["drag"], 0.3 * beta1, rtol=1e-12)
+    for c, name in enumerate(("ux", "uy", "uz")):
+        np.testing.assert_array_equal(first["u_ref"][c], getattr(loop.gas, name))
+    held = {k: v.copy() for k, v in first.items()}
+    loop.step()
+    s2 = loop.last_sample
+    mom2 = np.stack([s2.momentum_source(c) for c in range(3)])
+    blended = 0.7 * held["momentum"] + 0.3 * mom2
+    drag = 0.7 * held["drag"] + 0.3 * s2.drag_coefficient
+    np.testing.assert_allclose(loop.sources["drag"], drag, rtol=1e-12)
+    u_new = np.stack([loop.gas.ux, loop.gas.uy, loop.gas.uz])
+    applied = blended + drag * (held["u_ref"] - u_new)
+    np.testing.assert_allclose(loop.sources["momentum"], applied, rtol=1e-12, atol=1e-12 * np.abs(applied).max())
+    assert np.abs(u_new - held["u_ref"]).max() > 1e-3  # the gas moved, so the two differ
+    # (that the linearised source keeps the explicit one's solution: tests/test_rans_pipe_flow.py)
+
+
 def test_seen_energy_of_tracers_matches_the_gas_k_in_the_core():
     """physics.k_source_scaling = "seen-energy" rescales S_k by k/k_seen: for tracers in fully
     developed flow the Langevin fluctuations they see carry the local k (factor ~ 1)."""

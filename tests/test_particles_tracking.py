@@ -190,6 +190,38 @@ def test_a_pass_draws_fresh_noise_and_a_seed_reproduces(base_passes):
     assert not np.array_equal(other.total, first.total)
 
 
+@pytest.mark.parametrize("u_inject", [10.0, 7.0])
+def test_drag_coefficient_is_the_momentum_source_per_unit_slip(u_inject):
+    """Sample.drag_coefficient β = (1/V) Σ Ṅ m δt/τ_p.  Drag only, uniform gas at 10 m/s
+    (negligible turbulence): particles injected at the gas velocity keep zero slip, so
+    β = c/τ_p0 (Stokes, the concentration c over the response time) to round-off; injected
+    at 7 m/s, the source on the gas is −β (U − ū_p) per cell (each step's impulse is m/τ_p times its mean
+    slip times δt; the cell mixes steps of slightly different τ_p)."""
+    from .particle_support import uniform_field
+
+    from particles.tracking import PhysicsOptions as Options
+
+    drag_only = Options(saffman_mei_lift=False, magnus_lift=False, rotation=False, gravity=False,
+                        inter_particle_collisions=False)
+    mesh = PipeMesh.build(0.0305, 0.5, mode="developing", axial_cells=20, radial_cells=6, azimuthal_cells=8,
+                          bulk_velocity=10.0)
+    gas = uniform_field(mesh, ux=10.0, k=1e-24, epsilon=1e-24)
+    spec = ParticleSpec(200e-6, 1020.0, 1.0, u_inject, 1e-9)
+    s = track(mesh, gas, spec, drag_only, parcels=400, seed=3)
+    assert s.counts["lost"] == 0 and s.counts["exited"] == 400
+    # the outlet cell also holds the impulse beyond the plane; the wall ring sees the log law
+    inner = (slice(0, -1), slice(0, -1))
+    beta = s.drag_coefficient[inner]
+    tau0 = spec.density * spec.diameter**2 / (18.0 * AIR.viscosity)
+    if u_inject == 10.0:
+        np.testing.assert_allclose(beta, s.concentration[inner] / tau0, rtol=1e-6)  # f - 1 ~ slip^0.687
+    else:
+        slip = 10.0 - s.velocity(0)[inner]
+        assert slip.min() > 1.0  # still slipping at the outlet
+        assert np.all(beta > 1.2 * s.concentration[inner] / tau0)  # Schiller-Naumann: f > 1
+        np.testing.assert_allclose(s.momentum_source(0)[inner], -beta * slip, rtol=1e-3)  # the gas loses it
+
+
 def test_residence_cap_stops_and_counts_parcels():
     mesh, gas = periodic_pipe()
     s = track(mesh, gas, BASE, PhysicsOptions(inter_particle_collisions=False), parcels=200, seed=1,

@@ -379,3 +379,70 @@ def test_only_a_steady_contraction_counts_as_still_converging():
     for _ in range(50):
         wander = list(10.0 ** rng.uniform(-4.0, -3.0, 200))
         assert not _still_converging(wander, 50, 1e-6, 600)
+
+
+def _particle_like_momentum_source(m, f, scale):
+    """A braking source concentrated in the bottom half, with a cross-flow part (N m-3)."""
+    sec = m.geometry()
+    ybot = np.clip(-sec.cy.reshape(m.shape[1:]) / m.radius, 0.0, None)
+    s = Sources.zeros(m)
+    s.momentum[0] = -scale * (0.2 + ybot**2)
+    s.momentum[1] = 0.05 * scale * ybot
+    s.momentum[2] = 0.02 * scale * np.sin(np.pi * sec.cz.reshape(m.shape[1:]) / m.radius)
+    return s
+
+
+@pytest.mark.parametrize("mode", ["periodic", "developing"])
+def test_linearised_drag_keeps_the_solution_of_the_explicit_source(mode):
+    """Sources.drag: S(U) = momentum + drag (U_ref - U).  With U_ref the solution of the explicit
+    source, the linearised source has the same solution (the Rhie-Chow weights leave drag out),
+    however large drag is (here up to 50x the gas's own diagonal in the bottom cells)."""
+    U = 10.0
+    if mode == "periodic":
+        m, f = periodic(2e4, nr=10, nt=16)
+    else:
+        m = PipeMesh.build(D, 0.3, "developing", axial_cells=20, radial_cells=10, azimuthal_cells=16,
+                           bulk_velocity=U, density=RHO, viscosity=MU)
+        f = None
+    ref = solve(m, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, tol=1e-9) if f is None else f
+    s = _particle_like_momentum_source(m, ref, 20.0)
+    a = solve(m, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, sources=s, initial=f, tol=1e-10)
+    sec = m.geometry()
+    ybot = np.clip(-sec.cy.reshape(m.shape[1:]) / m.radius, 0.0, None)
+    drag = np.broadcast_to(2.0e4 * ybot**4 + 10.0, m.shape).copy()  # kg m-3 s-1
+    u_ref = np.stack([a.ux, a.uy, a.uz])
+    lin = Sources(s.momentum, s.k, s.epsilon, drag=drag, velocity_reference=u_ref)
+    b = solve(m, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, sources=lin, initial=f, tol=1e-10)
+    assert a.converged and b.converged
+    tol = dict(rtol=0, atol=1e-6 * U)
+    np.testing.assert_allclose(b.ux, a.ux, **tol)
+    np.testing.assert_allclose(b.uy, a.uy, **tol)
+    np.testing.assert_allclose(b.uz, a.uz, **tol)
+    np.testing.assert_allclose(b.pressure_gradient, a.pressure_gradient, rtol=1e-6)
+    np.testing.assert_allclose(b.k, a.k, rtol=1e-5)
+    np.testing.assert_allclose(lin.applied_momentum(b.ux, b.uy, b.uz), s.momentum, rtol=0, atol=1e-4 * 20.0)
+
+
+def test_linear_drag_source_balances_the_pressure_gradient():
+    """A pure linear drag S = -beta U (momentum 0, U_ref = 0, beta uniform) in fully developed
+    flow: the section-mean momentum balance -dp/dx = 4 tau_w/D + beta U_b holds exactly."""
+    U, beta = 10.0, 3.0  # beta U_b = 30 Pa/m, about the wall's 4 tau_w / D at Re 2e4
+    m, f = periodic(2e4, nr=10, nt=16)
+    lin = Sources(np.zeros((3,) + m.shape), np.zeros(m.shape), np.zeros(m.shape),
+                  drag=np.full(m.shape, beta), velocity_reference=np.zeros((3,) + m.shape))
+    g = solve(m, GAS, U, sources=lin, initial=f, tol=1e-10)
+    assert g.converged
+    wall = 4.0 * g.wall_shear[0].mean() / D
+    assert g.pressure_gradient[0] == pytest.approx(wall + beta * U, rel=1e-6)
+    assert g.pressure_gradient[0] > f.pressure_gradient[0] + 0.9 * beta * U  # the drag acts
+
+
+def test_drag_source_without_its_reference_velocity_is_rejected():
+    m = PipeMesh.build(D, 1.0, "periodic", radial_cells=8, azimuthal_cells=16, bulk_velocity=10.0,
+                       density=RHO, viscosity=MU)
+    s = Sources.zeros(m)
+    with pytest.raises(ValueError, match="velocity_reference"):
+        solve(m, GAS, 10.0, sources=Sources(s.momentum, s.k, s.epsilon, drag=np.ones(m.shape)))
+    with pytest.raises(ValueError, match="negative"):
+        solve(m, GAS, 10.0, sources=Sources(s.momentum, s.k, s.epsilon, drag=-np.ones(m.shape),
+                                            velocity_reference=np.zeros((3,) + m.shape)))
