@@ -26,15 +26,22 @@ Cycle (the reference paper's):
    the iterate's ε/k (``rans.Sources.c_eps3``), so that it follows the turbulence it acts on.
 
 Linearised drag: a pass also samples β = (1/V) Σ Ṅ m δt/τ_p, the drag coefficient by which
-its momentum source falls as the gas velocity rises (−∂S/∂U at fixed particle velocities), and
-β is relaxed like the source.  The gas solve applies S_used + β (U_ref − U), U_ref the gas
-velocity the blended source refers to, −β U implicitly (``rans.Sources.drag``); after the solve
-the source as applied in the new gas field is what is kept (and blended next).  An explicit
-source whose β is many times the gas's own cross-section transport coefficients (the dense
-bottom layer at η = 30: up to 58×; the 0.3 m pipe at Re = 10⁶: 17×; the base case: 0.3×,
-measured on the converged datasets) brakes the gas with the slip of the last pass, overshoots
-(reversed flow in the bottom wall cell at η = 30 and α = 0.3) and makes the residual depend on
-α; linearised, the gas meets the particle drag at its new velocity.  Where the iteration has
+its momentum source falls as the gas velocity rises (−∂S/∂U at fixed particle velocities).
+The pass's part of the blend is applied linearised about the gas U_ref it was sampled in:
+S(U) = (1 − α) S_prev + α [S_pass + β (U_ref − U)], −α β U implicitly (``rans.Sources.drag``);
+after the solve the source as applied in the new gas field is what is kept (and blended
+next).  An explicit source whose β is many times the gas's own cross-section transport
+coefficients (the dense bottom layer at η = 30: up to 58×; the 0.3 m pipe at Re = 10⁶: 17×;
+the base case: 0.3×, measured on the converged datasets) brakes the gas with the slip of the
+last pass and overshoots (reversed flow in the bottom wall cell at η = 30 and α = 0.3;
+−dp/dx of 77, 84, −156, 14 Pa/m in the first passes of scene f).  Why α β and not the
+relaxed β (model of one mode: gas U = U* + g S, pass S_pass = −F − β_eff (U − U*), β_eff ≤ β
+as the particles follow the gas): with β_used = θ β the contraction per pass is
+[1 − α + g β (θ − α β_eff/β)]/(1 + g θ β).  Short modes, where β_eff ≈ β (the stiff ones),
+contract by (1 − α)/(1 + α g β) at θ = α, and the explicit θ = 0 diverges once α (1 + g β) > 2;
+long modes, where the particles follow the gas (β_eff ≪ β), contract by 1 − α β_eff/θβ as
+g β grows, so the fully relaxed β (θ = 1) holds them near 1 (scene f at θ = 1: −dp/dx rising
+by ~3.5 Pa/m per pass from 24 Pa/m, below its single-phase 48).  Where the iteration has
 converged, U = U_ref and the applied source is the relaxed one: the fixed point is that of the
 explicit source.  ``LINEARISED_DRAG = False`` restores the explicit source.
 
@@ -552,13 +559,12 @@ class CouplingLoop:
             prev = dict(prev)
             prev["k"] = np.where(prev["k"] < 0.0, prev["k"] * (self.gas.k / prev["k_ref"]), prev["k"])
         # the previous momentum source is already the one applied in the present gas field
-        # (step() stores it so), and its drag coefficient is blended like the source
+        # (step() stores it so); only this pass's part, α S_pass, is linearised (α β_pass)
         new = {"momentum": (1 - alpha) * prev["momentum"] + alpha * comp["momentum"],
                "k": (1 - alpha) * prev["k"] + alpha * comp["k"],
                "k_ref": self.gas.k.copy(), "eps_ref": self.gas.epsilon.copy()}
         if comp.get("drag") is not None:
-            old_drag = prev.get("drag")
-            new["drag"] = alpha * comp["drag"] + ((1 - alpha) * old_drag if old_drag is not None else 0.0)
+            new["drag"] = alpha * comp["drag"]
             new["u_ref"] = np.stack([self.gas.ux, self.gas.uy, self.gas.uz])
         residual = math.nan
         if self.sources is not None:

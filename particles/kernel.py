@@ -631,6 +631,7 @@ def make_tracker(options=PhysicsOptions()):
                     out[base + A_J + 1] += ndot * rest * imp[1]
                     out[base + A_J + 2] += ndot * rest * imp[2]
                     out[base + A_SK] += ndot * rest * uj
+                    out[base + A_BETA] += w_m * rest * dt / tau_step
                 for c in range(3):
                     out[off_bud + B_J + c] += ndot * imp[c]
                 out[off_bud + B_WEIGHT + 1] -= w_m * gred * dt

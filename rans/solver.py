@@ -76,7 +76,7 @@ class Sources:
     the momentum source linearised in the gas velocity, S(U) = momentum + drag (U_ref − U)
     (drag = −∂S/∂U of the particle drag, sampled with the source; U_ref the gas velocity it was
     sampled in).  The part −drag U is implicit (on the diagonal of the momentum equations), so a
-    dense particle layer that brakes the gas cannot overshoot it into reversed flow; where
+    dense particle layer brakes the gas with the slip at its new velocity, not the old one; where
     U = U_ref the applied source is ``momentum`` exactly, so the coupled fixed point is that of
     the explicit source (the Rhie-Chow weights leave drag out for the same reason).
 
