@@ -87,6 +87,31 @@ def test_checkpoint_without_a_newer_history_record_resumes(tmp_path):
     assert np.isfinite(resumed.history.collision_momentum[1])
 
 
+def test_checkpoint_from_before_the_linearised_drag_resumes(tmp_path):
+    """A checkpoint without the drag coefficient and its reference velocity (before 6f43b6b)
+    resumes: the next pass's part is linearised about the gas it was sampled in."""
+    case = small_case(**{"numerics.max_passes": 4})
+    ckpt = tmp_path / "out.nc.checkpoint"
+    loop = CouplingLoop(case, checkpoint=ckpt)
+    loop.step()
+    with np.load(ckpt) as z:
+        assert "src_drag" in z.files and "src_u_ref" in z.files
+        data = {k: z[k] for k in z.files if k not in ("src_drag", "src_u_ref")}
+    np.savez(ckpt, **data)
+    ckpt.with_suffix(".checkpoint.npz").replace(ckpt)
+    resumed = CouplingLoop(case, checkpoint=ckpt, resume=True)
+    assert "drag" not in resumed.sources
+    old = resumed.sources["momentum"].copy()
+    u_before = np.stack([resumed.gas.ux, resumed.gas.uy, resumed.gas.uz])
+    resumed.step()
+    s, a = resumed.last_sample, resumed.alpha
+    np.testing.assert_allclose(resumed.sources["drag"], a * s.drag_coefficient, rtol=1e-12)
+    u_new = np.stack([resumed.gas.ux, resumed.gas.uy, resumed.gas.uz])
+    want = (1 - a) * old + a * np.stack([s.momentum_source(c) for c in range(3)]) \
+        + a * s.drag_coefficient * (u_before - u_new)
+    np.testing.assert_allclose(resumed.sources["momentum"], want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+
+
 def test_checkpoint_of_an_older_result_layout_is_refused(tmp_path):
     """Averaged passes stored with another tracker layout (the counters grew in 996d988) would
     fail later with a shape error: refused at once, with the remedy."""
