@@ -123,8 +123,9 @@ COLLISION_MOMENTUM_AHEAD = 10.0
 #: Weight of the newest pass in the collision statistics' mean velocity and spin (at least;
 #: the rest of the statistics take the case's α): a numerical choice (README "Coupling" 6).
 STATISTICS_MEAN_WEIGHT = 0.5
-#: Apply the relaxed momentum source linearised in the gas velocity, S_used + β (U_ref − U)
-#: (module docstring, "Linearised drag"); False: the explicit S_used of the earlier versions.
+#: Apply the pass's part of the relaxed momentum source linearised in the gas velocity,
+#: α [S_pass + β (U_ref − U)] (module docstring, "Linearised drag"); False: the explicit
+#: relaxed source of the versions before 6f43b6b.
 #: The fixed point is the same either way.
 LINEARISED_DRAG = True
 
