@@ -344,6 +344,29 @@ def test_the_pressure_gradient_drift_uses_the_smallest_relaxation_of_its_window(
     assert alpha == 0.075 and to_come == pytest.approx(0.925 / 0.075 / 100.0)
 
 
+def test_a_slow_geometric_drift_of_the_pressure_gradient_is_not_taken_for_convergence():
+    """-dp/dx = 100 - 10 r^n with r = 0.97 at α = 0.3: after 12 passes it creeps by 0.21 Pa/m
+    per pass with 7.2 Pa/m still to come.  (1 - α)/α would say 0.5 % (converged); the
+    contraction shown by the last eight passes gives the true ~7.7 %."""
+    from eulag.coupling import _geometric_ahead, pressure_gradient_to_come
+
+    n = np.arange(12)
+    dp = 100.0 - 10.0 * 0.97**n
+    rel = [0.3] * 12
+    truth = (100.0 - dp[-1]) / dp[-1]
+    trend, to_come, alpha = pressure_gradient_to_come(dp, rel)
+    assert abs(trend) * (0.7 / 0.3) / dp[-1] < 0.01  # what the relaxation alone would say
+    assert to_come == pytest.approx(truth, rel=0.05)
+    assert _geometric_ahead(dp, rel) == pytest.approx(0.97 / 0.03, rel=1e-6)
+    # a drift that is not slowing down (rising increments) is never converged
+    assert pressure_gradient_to_come(100.0 + 0.05 * n**2, rel)[1] == math.inf
+    # noise about a level, an oscillation, or α changed in the window: the α estimate stands
+    noisy = 100.0 + 0.05 * np.random.default_rng(4).standard_normal(12)
+    assert _geometric_ahead(noisy, rel) is None
+    assert _geometric_ahead(100.0 + (-1.0) ** n * 0.97**n, rel) is None
+    assert _geometric_ahead(dp, [0.15] * 6 + [0.3] * 6) is None
+
+
 def test_collision_statistics_keep_the_case_relaxation_when_alpha_is_lowered():
     # α lowered for the gas (0.075) must not freeze the partner statistics at the first passes'
     from particles.layout import CS_N, CS_OK, NCS
