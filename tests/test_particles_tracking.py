@@ -199,9 +199,7 @@ def test_drag_coefficient_is_the_momentum_source_per_unit_slip(u_inject):
     slip times δt; the cell mixes steps of slightly different τ_p)."""
     from .particle_support import uniform_field
 
-    from particles.tracking import PhysicsOptions as Options
-
-    drag_only = Options(saffman_mei_lift=False, magnus_lift=False, rotation=False, gravity=False,
+    drag_only = PhysicsOptions(saffman_mei_lift=False, magnus_lift=False, rotation=False, gravity=False,
                         inter_particle_collisions=False)
     mesh = PipeMesh.build(0.0305, 0.5, mode="developing", axial_cells=20, radial_cells=6, azimuthal_cells=8,
                           bulk_velocity=10.0)

@@ -396,7 +396,7 @@ def _particle_like_momentum_source(m, f, scale):
 def test_linearised_drag_keeps_the_solution_of_the_explicit_source(mode):
     """Sources.drag: S(U) = momentum + drag (U_ref - U).  With U_ref the solution of the explicit
     source, the linearised source has the same solution (the Rhie-Chow weights leave drag out),
-    however large drag is (here up to 50x the gas's own diagonal in the bottom cells)."""
+    however large drag is (here up to 2e4 kg m-3 s-1 in the bottom cells)."""
     U = 10.0
     if mode == "periodic":
         m, f = periodic(2e4, nr=10, nt=16)
