@@ -487,6 +487,8 @@ def _collision_momentum(ds, case: Case) -> float:
     drawn from match the particles, so this is the model's momentum error."""
     if "collision_momentum_history" not in ds:
         return math.nan
+    if case is not None and not case.physics.inter_particle_collisions:
+        return math.nan
     v = np.asarray(ds["collision_momentum_history"].values, dtype=float)
     v = v[-max(1, case.numerics.average_passes):] if case is not None else v[-1:]
     v = v[np.isfinite(v)]
@@ -705,7 +707,7 @@ COLLISION_MOMENTUM_TEXT = (
     "gave the particles over their momentum inflow, mean of the final passes (real collisions "
     "conserve momentum; the fictitious partners do so only while the cell statistics they are drawn "
     "from match the particles, so this is the collision model's momentum error; — where the "
-    "dataset predates the record or the run failed); commit = the eulag commit that wrote the "
+    "dataset predates the record, the run failed or has no inter-particle collisions); commit = the eulag commit that wrote the "
     "run's dataset (a run reused with --resume may predate this invocation; — where the dataset "
     "predates the record)")
 
@@ -720,7 +722,9 @@ def _run_columns() -> list[Column]:
 def _run_cells(rec: RunRecord) -> dict:
     return {"converged": _status_cell(rec), "passes": rec.passes, "time_s": rec.time,
             "final_residual": rec.residual, "relaxation": rec.relaxation,
-            "collision_momentum": rec.metrics.get("collision_momentum"),
+            "collision_momentum": (rec.metrics.get("collision_momentum")
+                                   if rec.case is None or rec.case.physics.inter_particle_collisions
+                                   else None),
             "commit": rec.metrics.get("commit")}
 
 
