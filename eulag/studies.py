@@ -1471,8 +1471,29 @@ def _field_health(ds) -> dict[str, Any]:
             "sliding_pct": 100.0 * sliding / steps if steps and math.isfinite(steps) else math.nan,
             "floored_max": int(np.max(ds["gas_floored_cells"].values)) if "gas_floored_cells" in ds else None,
             "floored_last": int(ds["gas_floored_cells"].values[-1]) if "gas_floored_cells" in ds else None,
+            **_floored_where(ds),
             "residual_history": [float(v) for v in np.asarray(ds["residual"].values, dtype=float)],
             "relaxation_history": [float(v) for v in relax]}
+
+
+def _floored_where(ds) -> dict[str, Any]:
+    """Where the final gas field sits at the k/ε floor (rans.solver.K_FLOOR): the axial range
+    of those cells and how many of them are in the wall ring (empty when none or unknown)."""
+    from rans.kepsilon import C_MU
+    from rans.solver import K_FLOOR
+    try:
+        k = np.asarray(ds["gas_k"].values, dtype=float)
+        eps = np.asarray(ds["gas_epsilon"].values, dtype=float)
+        x = np.asarray(ds["x"].values, dtype=float)
+        k_floor = K_FLOOR * float(ds.attrs["gas.bulk_velocity"]) ** 2
+        eps_floor = C_MU * k_floor**1.5 / float(ds.attrs["pipe.diameter"])
+    except (KeyError, ValueError, TypeError):
+        return {}
+    at = (k <= k_floor * (1.0 + 1e-6)) | (eps <= eps_floor * (1.0 + 1e-6))  # (x, r, theta)
+    if not at.any():
+        return {}
+    xs = x[at.any(axis=(1, 2))]
+    return {"floored_x": [float(xs.min()), float(xs.max())], "floored_wall": int(at[:, -1, :].sum())}
 
 
 def _wall_cell_thickness(case: Case) -> float:
@@ -1512,8 +1533,7 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
                      "stuck_final": m.get("stuck_final"), "lost": m.get("lost"),
                      "sliding_pct": m.get("sliding_pct"), "nonfinite": m.get("nonfinite"),
                      "k_min": m.get("k_min"), "eps_min": m.get("eps_min"),
-                     "floored": (f"{m['floored_last']} (max {m['floored_max']})"
-                                 if m.get("floored_max") is not None else None),
+                     "floored": _floored_cell(m),
                      "collision_momentum": m.get("collision_momentum"), "commit": m.get("commit"),
                      "first_wrong": wrong})
     columns = [Column("case", "case"), Column("change", "change from the base case"),
@@ -1575,7 +1595,8 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
         "the bottom layer); gas fields with a non-finite value; the smallest k and epsilon; the gas "
         "cells where k or epsilon was held at its floor (k = 1e-10 U0², rans.solver.K_FLOOR) in the last pass's gas solve and the "
         "most in any pass (counted by the solver, `gas_floored_cells`; — where the record predates the "
-        "column); "
+        "column), and where the final field has them: their axial range and how many lie in the wall "
+        "ring (the wall function's cell); "
         + COLLISION_MOMENTUM_TEXT + "; the first "
         "quantity to go wrong (the CouplingError message), or why the run did not converge."]
     fig = _stability_figure(outdir / "stability_history.png", specs, records)  # None: no history
@@ -1613,6 +1634,16 @@ def _tracer_sink_text(specs, records) -> str:
         text += (f" In this run (core, r < R/2, median over the cells with particles; S_k as applied, "
                  f"i.e. relaxed, so it reaches the sampled value only as the loop converges): "
                  f"-S_k/(c_p eps) = {ratio:.3g} against {3 / C_T:.1f}, and -S_k/(rho eps) = {gas_ratio:.3g}.")
+    return text
+
+
+def _floored_cell(m: dict) -> str | None:
+    if m.get("floored_max") is None:
+        return None
+    text = f"{m['floored_last']} (max {m['floored_max']})"
+    if m.get("floored_x"):
+        x0, x1 = m["floored_x"]
+        text += f"; final field: x = {x0:.3g}–{x1:.3g} m, {m.get('floored_wall', 0)} in the wall ring"
     return text
 
 

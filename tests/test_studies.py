@@ -393,3 +393,30 @@ def test_output_dir_that_is_a_file_exits_2(tmp_path, capsys):
     f.write_text("x")
     assert study("scenes", "--quick", "-o", f) == 2
     assert "not a directory" in capsys.readouterr().err
+
+
+def test_floored_cells_are_located_in_the_final_field():
+    """The stability table says where k/ε sit at their floor: axial range and wall-ring count."""
+    import xarray as xr
+
+    from eulag.studies import _floored_cell, _floored_where
+    from rans.kepsilon import C_MU
+    from rans.solver import K_FLOOR
+
+    u0, d = 10.0, 0.03
+    k_floor = K_FLOOR * u0**2
+    x = np.linspace(0.05, 3.95, 40)
+    k = np.full((40, 5, 8), 0.5)
+    eps = np.full_like(k, 10.0)
+    k[3:7, 0:2, :] = k_floor                          # the core of x = 0.35-0.65 m
+    eps[30, 4, 2] = C_MU * k_floor**1.5 / d           # one wall-ring cell with epsilon at its floor
+    ds = xr.Dataset({"gas_k": (("x", "r", "theta"), k), "gas_epsilon": (("x", "r", "theta"), eps)},
+                    coords={"x": x}, attrs={"gas.bulk_velocity": u0, "pipe.diameter": d})
+    where = _floored_where(ds)
+    assert where["floored_x"] == [pytest.approx(x[3]), pytest.approx(x[30])]
+    assert where["floored_wall"] == 1
+    text = _floored_cell({"floored_last": 65, "floored_max": 70, **where})
+    assert text.startswith("65 (max 70); final field: x = ") and "1 in the wall ring" in text
+    k[3:7, 0:2, :] = 2.0 * k_floor                    # above the floor: not counted
+    eps[30, 4, 2] = 10.0
+    assert _floored_where(ds) == {}
