@@ -47,7 +47,11 @@ explicit source.  ``LINEARISED_DRAG = False`` restores the explicit source.
 
 Stagnation: when the residual has stayed above the tolerance for ``2 W`` passes (W = 4) since
 the start or the last change of α, and the best residual of the last W passes is not at least
-10 % below the best of the W before, α is halved (not below 0.05).  The halving lowers the
+10 % below the best of the W before, α is halved (not below 0.05) — unless the section-mean
+−dp/dx of those 2 W passes drifts steadily (trend above 3 standard errors, and more than 1 %
+still to come at this α: ``steady_drift``); then the residual measures the approach as much as
+the noise, and a halved α would only halve its pace (scene g at 13b776b: halved at passes 10
+and 18 while −dp/dx rose by 4–8 Pa/m per pass, 40 passes unconverged).  The halving lowers the
 pass-to-pass noise the lagged fields carry into the next pass (it is what kept the residual of
 such cases at about 2) and damps an oscillating mode; each change is in the history
 (``relaxation``) and in the progress line.
@@ -208,6 +212,29 @@ def _geometric_ahead(history, relaxation, w=_INTEGRAL_PASSES + 1):
     return r / (1.0 - r)
 
 
+def steady_drift(history, relaxation, n=2 * _STAGNATION_WINDOW):
+    """The least-squares trend [Pa/m per pass] of the last ``n`` section-mean pressure
+    gradients in ``history`` (passes at one α = ``relaxation``) where it is a drift that
+    matters, else None: the trend stands above 3 standard errors of the scatter about the
+    line and the change still to come at this α, trend × (1 − α)/α, is above the loop's
+    tolerance on −dp/dx (1 % of its last value).
+
+    While the relaxed iteration follows such a drift, the residual measures the drift as
+    much as the noise, and halving α would halve the pace of the approach (module docstring,
+    "Stagnation")."""
+    h = np.asarray(history[-n:], dtype=float)
+    if h.size < n or n < 4 or not np.all(np.isfinite(h)):
+        return None
+    x = np.arange(n, dtype=float)
+    fit = np.polyfit(x, h, 1)
+    se = math.sqrt(np.sum((h - np.polyval(fit, x)) ** 2) / (n - 2) / np.sum((x - x.mean()) ** 2))
+    trend = float(fit[0])
+    ahead = abs(trend) * (1.0 - relaxation) / relaxation
+    if abs(trend) > 3.0 * se and ahead > _INTEGRAL_TOL * abs(float(h[-1])):
+        return trend
+    return None
+
+
 def collision_momentum_settled(history) -> bool:
     """Whether the stochastic collisions' net momentum (per pass, / the particle inflow) has
     settled: less than COLLISION_MOMENTUM_TOL of change still to come.  The fictitious partners
@@ -340,6 +367,7 @@ class CouplingLoop:
         self.alpha_changed_at = 0  # pass after which alpha was last changed (stagnation rule)
         self.alpha_cap = self.alpha  # the recovery never goes above an α whose gas solve failed
         self.recovered = False  # α was raised again by the recovery rule (once only)
+        self.drift_told_at = -1  # α level (alpha_changed_at) at which a kept α was reported
         self.two_way = case.physics.coupling != "one-way"
         self.history = _History()
         self.timings = {"gas_solve": 0.0, "lagrangian": 0.0, "checkpoint": 0.0, "compile": 0.0}
@@ -555,6 +583,15 @@ class CouplingLoop:
             return
         last, before = r[-w:], r[-2 * w:-w]
         if np.all(last >= tol) and last.min() > _STAGNATION_GAIN * before.min():
+            dp = self.history.pressure_gradient[self.alpha_changed_at:]
+            drift = steady_drift(dp, self.alpha, 2 * w)
+            if drift is not None:
+                if self.drift_told_at != self.alpha_changed_at:
+                    self.drift_told_at = self.alpha_changed_at
+                    self._tell(f"pass {self.pass_index}: the residual stays above {tol:g} (last {w} passes "
+                               f"{last.min():.3g}-{last.max():.3g}) while -dp/dx drifts steadily "
+                               f"({drift:+.3g} Pa/m per pass); relaxation kept at {self.alpha:g}")
+                return
             self.alpha = max(MIN_RELAXATION, self.alpha / 2)
             self.alpha_changed_at = self.pass_index - 1
             self._tell(f"pass {self.pass_index}: the residual stagnates above {tol:g} "

@@ -268,6 +268,49 @@ def test_relaxation_is_halved_when_the_residual_stagnates(residuals, halved):
         assert loop.alpha == 0.15
 
 
+@pytest.mark.parametrize("dp, alpha, drifting", [
+    ([34.2, 28.3, 34.9, 39.2, 43.7, 47.5, 51.6, 59.2], 0.3, True),    # scene g, passes 2-9
+    ([64.4, 64.8, 65.1, 65.3, 65.5, 65.7, 65.9, 66.1], 0.15, True),   # f, passes 15-22: 2 % to come
+    ([72.7, 73.0, 73.2, 73.4, 73.5, 73.6, 73.8, 73.9], 0.3, False),   # eta = 10: 0.5 % to come
+    ([86.7, 40.2, 144.1, 25.7, 119.4, 43.7, 107.1, 47.0], 0.3, False),  # an oscillation
+    ([62.1, 75.7, 63.2, 67.6, 69.9, 70.8, 73.7, 74.7], 0.3, False),   # a trend within the scatter
+    ([65.3, 67.2, 67.1, 67.5, 68.2, 68.7, 69.2], 0.15, False),        # too few passes
+])
+def test_steady_drift_of_the_pressure_gradient(dp, alpha, drifting):
+    """Windows of -dp/dx from the runs (results/README.md): a drift above 3 standard errors
+    with more than 1 % still to come at this α."""
+    from eulag.coupling import steady_drift
+
+    trend = steady_drift(dp, alpha, 8)
+    assert (trend is not None) == drifting
+    if drifting:
+        assert trend == pytest.approx(np.polyfit(np.arange(8.0), dp, 1)[0])
+
+
+def test_relaxation_is_kept_while_the_pressure_gradient_drifts():
+    """The stagnation rule does not halve α while -dp/dx follows a steady drift (the residual
+    then measures the approach, not only the noise); it does once the drift has stopped."""
+    told = []
+    loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1.5}), notify=told.append)
+    stuck = [2.5, 2.3, 2.4, 2.5, 2.2, 2.4, 2.4, 2.3]
+    loop.history.residual = [float("nan")] + stuck
+    loop.history.pressure_gradient = [14.9, 34.2, 28.3, 34.9, 39.2, 43.7, 47.5, 51.6, 59.2]
+    loop.pass_index = 10
+    loop._adapt_relaxation()
+    assert loop.alpha == 0.3
+    assert len(told) == 1 and "drifts steadily" in told[0] and "kept at 0.3" in told[0]
+    loop.history.residual.append(2.4)             # still drifting: kept, told only once per α
+    loop.history.pressure_gradient.append(62.5)
+    loop.pass_index += 1
+    loop._adapt_relaxation()
+    assert loop.alpha == 0.3 and len(told) == 1
+    loop.history.residual += stuck                # the drift has stopped: halved
+    loop.history.pressure_gradient += [73.6, 73.9, 73.7, 73.8, 73.9, 73.8, 73.9, 73.9]
+    loop.pass_index += 8
+    loop._adapt_relaxation()
+    assert loop.alpha == 0.15 and "halved to 0.15" in told[-1]
+
+
 def _judge(loop, residuals):
     """The passes with ``residuals`` have run: α is judged before the next one."""
     loop.history.residual += residuals
