@@ -356,6 +356,7 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             last = history[-1] if history else None
             hist = {"residual_history": [float(h.residual) for h in history],
                     "relaxation_history": [float(h.relaxation) for h in history]}
+            dt += _resumed_part(ckpt, history, hist)
             rec = RunRecord(name, case, out, kind, msg, dt, last.index if last else 0,
                             last.residual if last else math.nan, last.relaxation if last else math.nan,
                             metrics=dict(hist))
@@ -477,6 +478,26 @@ def _record_from_dataset(name, case, out, ds) -> RunRecord:
                      float(relax[-1]) if relax.size else math.nan,
                      metrics={"collision_momentum": _collision_momentum(ds, case),
                               "commit": ds.attrs.get("eulag_commit")})
+
+
+def _resumed_part(ckpt: Path, history: list, hist: dict) -> float:
+    """For a run that failed after a resume: prepend the histories of the passes run before
+    it (from the checkpoint, which holds every pass up to the one before the failure) to
+    ``hist`` and return their gas and Lagrangian time [s] (0 when nothing was resumed)."""
+    first = history[0].index if history else None
+    if first is None or first <= 1 or not ckpt.exists():
+        return 0.0
+    try:
+        with np.load(ckpt, allow_pickle=False) as z:
+            before = slice(0, first - 1)
+            res = [float(v) for v in z["hist_residual"][before]]
+            rel = [float(v) for v in z["hist_relaxation"][before]]
+            t = float(np.sum(z["hist_time_gas"][before]) + np.sum(z["hist_time_particles"][before]))
+    except (OSError, KeyError, ValueError):
+        return 0.0
+    hist["residual_history"] = res + hist["residual_history"]
+    hist["relaxation_history"] = rel + hist["relaxation_history"]
+    return t
 
 
 def _collision_momentum(ds, case: Case) -> float:

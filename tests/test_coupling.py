@@ -551,3 +551,29 @@ def test_the_relaxation_state_survives_a_checkpoint(tmp_path):
     loop._save()
     back = CouplingLoop(small_case(), checkpoint=ck, resume=True)
     assert (back.alpha, back.alpha_changed_at, back.alpha_cap, back.recovered) == (0.075, 1, 0.15, True)
+
+
+def test_collision_momentum_beyond_the_limit_in_three_passes():
+    """The guard on the collision model's momentum error: three passes in a row beyond ±0.5 of
+    the inflow (the first two passes do not count); the 1 µm tracers' history stops it."""
+    from eulag.coupling import collision_momentum_excessive
+
+    tracers = [0.0, 3.103, 0.137, 1.075, 1.497, 1.729]      # stability run tracers_1um, passes 1-6
+    assert collision_momentum_excessive(tracers) == pytest.approx(np.mean(tracers[-3:]))
+    assert collision_momentum_excessive(tracers[:5]) is None       # two passes beyond: not yet
+    assert collision_momentum_excessive([0.0, 0.76, 0.26, 0.26, 0.23]) is None  # scene h
+    assert collision_momentum_excessive([0.0, 3.1, -0.6, 0.9, -0.7]) == pytest.approx(-0.4 / 3)
+    assert collision_momentum_excessive([0.0, 3.1, 0.9, 0.2, 0.9, 0.8]) is None
+    assert collision_momentum_excessive([0.0, 3.1, 0.9, 0.9]) is None   # passes 3-4 only
+
+
+def test_the_loop_stops_on_the_collision_momentum_guard(monkeypatch):
+    """Wired into the loop: with the limit set to zero any four-way run stops at pass 5 with
+    the diagnosis (and leaves its checkpoint at pass 4 for a resume)."""
+    import eulag.coupling as coupling
+
+    monkeypatch.setattr(coupling, "COLLISION_MOMENTUM_LIMIT", 0.0)
+    loop = CouplingLoop(small_case(**{"numerics.max_passes": 8}))
+    with pytest.raises(coupling.CouplingError, match=r"pass 5: the stochastic inter-particle collisions"):
+        loop.run()
+    assert len(loop.history.collision_momentum) == 5

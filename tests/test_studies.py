@@ -420,3 +420,28 @@ def test_floored_cells_are_located_in_the_final_field():
     k[3:7, 0:2, :] = 2.0 * k_floor                    # above the floor: not counted
     eps[30, 4, 2] = 10.0
     assert _floored_where(ds) == {}
+
+
+def test_a_run_failing_after_a_resume_keeps_its_earlier_passes(tmp_path):
+    """The failed record of a resumed run counts the passes run before the resume: their
+    residuals and relaxations (from the checkpoint) and their time."""
+    from types import SimpleNamespace
+
+    from eulag.studies import _resumed_part
+
+    ckpt = tmp_path / "run.nc.checkpoint"
+    with open(ckpt, "wb") as f:  # (a path without .npz would get one appended)
+        np.savez(f, hist_residual=[np.nan, 10.4, 10.1, 12.5, 11.3, 14.4, 27.2],
+                 hist_relaxation=[0.3] * 7, hist_time_gas=[136.4, 85.5, 150.2, 165.1, 161.4, 166.5, 143.9],
+                 hist_time_particles=[2.8, 40.9, 33.7, 29.9, 31.5, 29.7, 30.9])
+    history = [SimpleNamespace(index=7, residual=27.2, relaxation=0.3),
+               SimpleNamespace(index=8, residual=19.0, relaxation=0.3)]
+    hist = {"residual_history": [27.2, 19.0], "relaxation_history": [0.3, 0.3]}
+    t = _resumed_part(ckpt, history, hist)
+    assert t == pytest.approx(136.4 + 85.5 + 150.2 + 165.1 + 161.4 + 166.5
+                              + 2.8 + 40.9 + 33.7 + 29.9 + 31.5 + 29.7)
+    assert hist["residual_history"][1:] == [10.4, 10.1, 12.5, 11.3, 14.4, 27.2, 19.0]
+    assert len(hist["relaxation_history"]) == 8
+    fresh = {"residual_history": [1.0], "relaxation_history": [0.3]}
+    assert _resumed_part(ckpt, [SimpleNamespace(index=1)], fresh) == 0.0  # nothing resumed
+    assert fresh["residual_history"] == [1.0]
