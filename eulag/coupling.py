@@ -131,9 +131,10 @@ _INTEGRAL_PASSES = 3
 #: not vanish (README "Coupling", item 6) and is reported, not required to be small.
 COLLISION_MOMENTUM_TOL = 0.02
 #: |net collision momentum| / inflow that, in each of COLLISION_MOMENTUM_LIMIT_PASSES passes
-#: in a row (from the third pass on), stops the loop: the model's error then dominates the
-#: coupled solution (the 1 µm tracers: +1.1 to +1.9 of the inflow; the largest level of any
-#: finished run: +0.22 at eta = 30).  A numerical guard of ours, not a model constant.
+#: in a row (from the third pass on), stops the loop: an error of that size drives the gas
+#: (the 1 µm tracers: +1.1 to +1.9 of the inflow, −dp/dx 51 → 19 Pa/m; Δγ = 20°: −0.7 to −1.6;
+#: the largest level of any finished run: +0.22 at eta = 30).  A numerical guard of ours, not
+#: a model constant.
 COLLISION_MOMENTUM_LIMIT = 0.5
 COLLISION_MOMENTUM_LIMIT_PASSES = 3
 COLLISION_MOMENTUM_PASSES = 6
@@ -568,8 +569,8 @@ class CouplingLoop:
             raise CouplingError(
                 f"pass {m}: the stochastic inter-particle collisions gave the particles {excess:+.3g} of "
                 f"their axial momentum inflow (mean of the last {COLLISION_MOMENTUM_LIMIT_PASSES} passes, "
-                f"each beyond ±{COLLISION_MOMENTUM_LIMIT:g}); real collisions conserve momentum, so the "
-                "fictitious-partner model's error dominates the coupled solution (README \"Coupling\" 6)")
+                f"each beyond ±{COLLISION_MOMENTUM_LIMIT:g}, the loop's limit); real collisions conserve "
+                "momentum, so this is the fictitious-partner model's error (README \"Coupling\" 6)")
         if self.phase == "final":
             self._add_to_window(sample)
             self.final_left -= 1
