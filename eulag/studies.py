@@ -321,7 +321,8 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
                              info.get("passes", 0), info.get("residual", math.nan),
                              info.get("relaxation", math.nan), reused=True,
                              metrics={"residual_history": info.get("residual_history", []),
-                                      "relaxation_history": info.get("relaxation_history", [])})
+                                      "relaxation_history": info.get("relaxation_history", []),
+                                      "commit": info.get("commit")})
 
     if ds is None:
         if not resume:
@@ -357,6 +358,7 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             hist = {"residual_history": [float(h.residual) for h in history],
                     "relaxation_history": [float(h.relaxation) for h in history]}
             dt += _resumed_part(ckpt, history, hist)
+            hist["commit"] = eulag.git_commit()
             rec = RunRecord(name, case, out, kind, msg, dt, last.index if last else 0,
                             last.residual if last else math.nan, last.relaxation if last else math.nan,
                             metrics=dict(hist))

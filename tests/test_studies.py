@@ -341,6 +341,9 @@ def test_a_failing_run_is_recorded_with_its_diagnosis(tmp_path, monkeypatch):
     n = len(calls)
     again = studies.run_case(SimpleNamespace(resume=True, quiet=True), "boom", case, tmp_path, "boom")
     assert again.reused and again.status == "failed" and len(calls) == n  # not run again
+    import eulag
+
+    assert again.metrics["commit"] == eulag.git_commit()  # the code that failed is named
     # a whole study goes on and reports it; failures are results of the stability study
     assert study("stability", "--quick", "--quiet", "--only", "U0_30,eta", "-o", tmp_path) == 2
     assert study("stability", "--quick", "--quiet", "--only", "U0_30", "-o", tmp_path) == 0
