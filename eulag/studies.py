@@ -357,9 +357,10 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             last = history[-1] if history else None
             hist = {"residual_history": [float(h.residual) for h in history],
                     "relaxation_history": [float(h.relaxation) for h in history]}
-            dt += _resumed_part(ckpt, history, hist)
+            t_before, n_before = _resumed_part(ckpt, history, hist)
+            dt += t_before
             hist["commit"] = eulag.git_commit()
-            rec = RunRecord(name, case, out, kind, msg, dt, last.index if last else 0,
+            rec = RunRecord(name, case, out, kind, msg, dt, last.index if last else n_before,
                             last.residual if last else math.nan, last.relaxation if last else math.nan,
                             metrics=dict(hist))
             out.unlink(missing_ok=True)  # an older dataset or record here would contradict the table
@@ -482,24 +483,25 @@ def _record_from_dataset(name, case, out, ds) -> RunRecord:
                               "commit": ds.attrs.get("eulag_commit")})
 
 
-def _resumed_part(ckpt: Path, history: list, hist: dict) -> float:
+def _resumed_part(ckpt: Path, history: list, hist: dict) -> tuple[float, int]:
     """For a run that failed after a resume: prepend the histories of the passes run before
     it (from the checkpoint, which holds every pass up to the one before the failure) to
-    ``hist`` and return their gas and Lagrangian time [s] (0 when nothing was resumed)."""
-    first = history[0].index if history else None
-    if first is None or first <= 1 or not ckpt.exists():
-        return 0.0
+    ``hist``; return their gas and Lagrangian time [s] and their number ((0, 0) when nothing
+    was resumed).  ``history``: the passes this invocation completed (maybe none)."""
+    if (history and history[0].index <= 1) or not ckpt.exists():
+        return 0.0, 0
     try:
         with np.load(ckpt, allow_pickle=False) as z:
-            before = slice(0, first - 1)
+            n = history[0].index - 1 if history else len(z["hist_residual"])
+            before = slice(0, n)
             res = [float(v) for v in z["hist_residual"][before]]
             rel = [float(v) for v in z["hist_relaxation"][before]]
             t = float(np.sum(z["hist_time_gas"][before]) + np.sum(z["hist_time_particles"][before]))
     except (OSError, KeyError, ValueError):
-        return 0.0
+        return 0.0, 0
     hist["residual_history"] = res + hist["residual_history"]
     hist["relaxation_history"] = rel + hist["relaxation_history"]
-    return t
+    return t, len(res)
 
 
 def _collision_momentum(ds, case: Case) -> float:

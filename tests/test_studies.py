@@ -440,11 +440,15 @@ def test_a_run_failing_after_a_resume_keeps_its_earlier_passes(tmp_path):
     history = [SimpleNamespace(index=7, residual=27.2, relaxation=0.3),
                SimpleNamespace(index=8, residual=19.0, relaxation=0.3)]
     hist = {"residual_history": [27.2, 19.0], "relaxation_history": [0.3, 0.3]}
-    t = _resumed_part(ckpt, history, hist)
-    assert t == pytest.approx(136.4 + 85.5 + 150.2 + 165.1 + 161.4 + 166.5
-                              + 2.8 + 40.9 + 33.7 + 29.9 + 31.5 + 29.7)
+    t, n = _resumed_part(ckpt, history, hist)
+    assert n == 6 and t == pytest.approx(136.4 + 85.5 + 150.2 + 165.1 + 161.4 + 166.5
+                                         + 2.8 + 40.9 + 33.7 + 29.9 + 31.5 + 29.7)
     assert hist["residual_history"][1:] == [10.4, 10.1, 12.5, 11.3, 14.4, 27.2, 19.0]
     assert len(hist["relaxation_history"]) == 8
+    # failed in the first pass after the resume: every pass of the checkpoint came before
+    none = {"residual_history": [], "relaxation_history": []}
+    t, n = _resumed_part(ckpt, [], none)
+    assert n == 7 and t == pytest.approx(1009.0 + 199.4) and len(none["residual_history"]) == 7
     fresh = {"residual_history": [1.0], "relaxation_history": [0.3]}
-    assert _resumed_part(ckpt, [SimpleNamespace(index=1)], fresh) == 0.0  # nothing resumed
+    assert _resumed_part(ckpt, [SimpleNamespace(index=1)], fresh) == (0.0, 0)  # nothing resumed
     assert fresh["residual_history"] == [1.0]
