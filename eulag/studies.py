@@ -360,8 +360,9 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             t_before, n_before = _resumed_part(ckpt, history, hist)
             dt += t_before
             hist["commit"] = eulag.git_commit()
+            res_h, rel_h = hist["residual_history"], hist["relaxation_history"]
             rec = RunRecord(name, case, out, kind, msg, dt, last.index if last else n_before,
-                            last.residual if last else math.nan, last.relaxation if last else math.nan,
+                            res_h[-1] if res_h else math.nan, rel_h[-1] if rel_h else math.nan,
                             metrics=dict(hist))
             out.unlink(missing_ok=True)  # an older dataset or record here would contradict the table
             record.unlink(missing_ok=True)
