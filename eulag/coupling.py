@@ -88,7 +88,8 @@ runs the final passes only.
 
 Stop on the collision model's momentum error: when the net axial momentum the stochastic
 collisions gave the particles is beyond ±COLLISION_MOMENTUM_LIMIT (0.5) of their momentum
-inflow in three passes in a row (``collision_momentum_excessive``), the loop stops with a
+inflow, with one sign, in three early passes in a row (``collision_momentum_excessive``; the
+final passes of a loop that has converged are not judged again), the loop stops with a
 CouplingError saying so: that momentum is the fictitious-partner model's error (real
 collisions conserve it) and it then drives the gas (the 1 µm tracers: +1.1 to +1.9 of the
 inflow in passes 4-8, −dp/dx falling from 51 to 19 Pa/m).
@@ -128,7 +129,8 @@ _INTEGRAL_PASSES = 3
 #: trend per pass over the last COLLISION_MOMENTUM_PASSES passes times COLLISION_MOMENTUM_AHEAD
 #: (the statistics close at least a tenth of their gap to the particles per pass while
 #: f_coll τ_p ≤ 9).  Numerical choices of ours, not model constants.  The level itself need
-#: not vanish (README "Coupling", item 6) and is reported, not required to be small.
+#: not vanish (README "Coupling", item 6) and is reported, not required to be small — up to
+#: COLLISION_MOMENTUM_LIMIT, beyond which the loop stops (below).
 COLLISION_MOMENTUM_TOL = 0.02
 #: |net collision momentum| / inflow that, in each of COLLISION_MOMENTUM_LIMIT_PASSES passes
 #: in a row (from the third pass on), stops the loop: an error of that size drives the gas
@@ -251,10 +253,12 @@ def steady_drift(history, relaxation, n=2 * _STAGNATION_WINDOW):
 
 def collision_momentum_excessive(history) -> float | None:
     """The mean net collision momentum / inflow of the last COLLISION_MOMENTUM_LIMIT_PASSES
-    passes when every one of them is beyond ±COLLISION_MOMENTUM_LIMIT, else None (the first
-    two passes do not count, as in ``collision_momentum_to_come``)."""
+    passes when every one of them is beyond +COLLISION_MOMENTUM_LIMIT, or every one beyond
+    −COLLISION_MOMENTUM_LIMIT, else None (an error of one sign is what drives the gas; the
+    first two passes do not count, as in ``collision_momentum_to_come``)."""
     v = np.asarray(history[2:], dtype=float)[-COLLISION_MOMENTUM_LIMIT_PASSES:]
-    if v.size < COLLISION_MOMENTUM_LIMIT_PASSES or not np.all(np.abs(v) > COLLISION_MOMENTUM_LIMIT):
+    if v.size < COLLISION_MOMENTUM_LIMIT_PASSES or not (np.all(v > COLLISION_MOMENTUM_LIMIT)
+                                                        or np.all(v < -COLLISION_MOMENTUM_LIMIT)):
         return None
     return float(np.mean(v))
 
@@ -365,7 +369,7 @@ class CouplingLoop:
     progress : callable(PassState) or None, called after every pass
     notify : callable(str) or None, told of what happens inside a pass that the user should
         see before it ends: a gas solve that failed and is retried with more relaxation, α
-        halved by the stagnation rule
+        halved (or kept while −dp/dx drifts) by the stagnation rule
     tracker : callable with the signature of :func:`particles.track` that runs a Lagrangian
         pass (default: ``particles.track``, local numba threads; e.g. a Dask-distributed one)
     """
@@ -564,7 +568,7 @@ class CouplingLoop:
         h.collision_momentum.append(float(b["particle_collisions"][0] / b["momentum_in"][0])
                                     if b["momentum_in"][0] else math.nan)
         self.last_sample = sample
-        excess = collision_momentum_excessive(h.collision_momentum)
+        excess = collision_momentum_excessive(h.collision_momentum) if self.phase == "early" else None
         if excess is not None:
             raise CouplingError(
                 f"pass {m}: the stochastic inter-particle collisions gave the particles {excess:+.3g} of "
@@ -749,6 +753,7 @@ class CouplingLoop:
         meta = {"version": CHECKPOINT_VERSION, "case": self.case.to_attrs(), "pass_index": self.pass_index,
                 "phase": self.phase, "final_left": self.final_left, "converged": self.converged,
                 "finished": self.finished, "alpha": self.alpha, "alpha_changed_at": self.alpha_changed_at,
+                "drift_told_at": self.drift_told_at,
                 "alpha_cap": self.alpha_cap, "recovered": self.recovered,
                 "window_n": self.window_n,
                 "window_batches": self.window_batches, "window_parcels": self.window_parcels,
@@ -799,6 +804,7 @@ class CouplingLoop:
         # checkpoints from before the recovery rule: no recovery (an earlier α may have failed)
         self.alpha_cap = meta.get("alpha_cap", self.alpha)
         self.recovered = meta.get("recovered", False)
+        self.drift_told_at = meta.get("drift_told_at", -1)
         self.timings.update(meta["timings"])
 
     def _gas_from(self, data, tag):

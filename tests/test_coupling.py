@@ -562,18 +562,30 @@ def test_collision_momentum_beyond_the_limit_in_three_passes():
     assert collision_momentum_excessive(tracers) == pytest.approx(np.mean(tracers[-3:]))
     assert collision_momentum_excessive(tracers[:5]) is None       # two passes beyond: not yet
     assert collision_momentum_excessive([0.0, 0.76, 0.26, 0.26, 0.23]) is None  # scene h
-    assert collision_momentum_excessive([0.0, 3.1, -0.6, 0.9, -0.7]) == pytest.approx(-0.4 / 3)
+    assert collision_momentum_excessive([0.0, 3.1, -0.6, 0.9, -0.7]) is None  # no one sign
+    assert collision_momentum_excessive([0.0, 0.2, -0.73, -1.0, -1.23]) == pytest.approx(-2.96 / 3)  # 20 deg
     assert collision_momentum_excessive([0.0, 3.1, 0.9, 0.2, 0.9, 0.8]) is None
     assert collision_momentum_excessive([0.0, 3.1, 0.9, 0.9]) is None   # passes 3-4 only
 
 
-def test_the_loop_stops_on_the_collision_momentum_guard(monkeypatch):
-    """Wired into the loop: with the limit set to zero any four-way run stops at pass 5 with
-    the diagnosis (and leaves its checkpoint at pass 4 for a resume)."""
+def test_the_loop_stops_on_the_collision_momentum_guard(monkeypatch, tmp_path):
+    """Wired into the loop: with the limit set to -inf (any level counts as positive excess)
+    a four-way run stops at pass 5 with the diagnosis, leaves its checkpoint at pass 4, and a
+    resume stops at pass 5 again."""
+    import json
+
     import eulag.coupling as coupling
 
-    monkeypatch.setattr(coupling, "COLLISION_MOMENTUM_LIMIT", 0.0)
-    loop = CouplingLoop(small_case(**{"numerics.max_passes": 8}))
+    monkeypatch.setattr(coupling, "COLLISION_MOMENTUM_LIMIT", -math.inf)
+    case = small_case(**{"numerics.max_passes": 8})
+    ckpt = tmp_path / "c.checkpoint"
+    loop = CouplingLoop(case, checkpoint=ckpt)
     with pytest.raises(coupling.CouplingError, match=r"pass 5: the stochastic inter-particle collisions"):
         loop.run()
     assert len(loop.history.collision_momentum) == 5
+    with np.load(ckpt) as z:
+        assert json.loads(bytes(z["meta"]).decode())["pass_index"] == 4
+    again = CouplingLoop(case, checkpoint=ckpt, resume=True)
+    assert again.pass_index == 4
+    with pytest.raises(coupling.CouplingError, match=r"pass 5: "):
+        again.run()
