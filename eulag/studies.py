@@ -748,6 +748,7 @@ def _run_columns() -> list[Column]:
 def _run_cells(rec: RunRecord) -> dict:
     return {"converged": _status_cell(rec), "passes": rec.passes, "time_s": rec.time,
             "final_residual": rec.residual, "relaxation": rec.relaxation,
+            # (records written before e3ab6c7 hold 0 for runs without inter-particle collisions)
             "collision_momentum": (rec.metrics.get("collision_momentum")
                                    if rec.case is None or rec.case.physics.inter_particle_collisions
                                    else None),
@@ -1505,14 +1506,13 @@ def _field_health(ds) -> dict[str, Any]:
 def _floored_where(ds) -> dict[str, Any]:
     """Where the final gas field sits at the k/ε floor (rans.solver.K_FLOOR): the axial range
     of those cells and how many of them are in the wall ring (empty when none or unknown)."""
-    from rans.kepsilon import C_MU
-    from rans.solver import K_FLOOR
+    from rans.solver import turbulence_floors
     try:
         k = np.asarray(ds["gas_k"].values, dtype=float)
         eps = np.asarray(ds["gas_epsilon"].values, dtype=float)
         x = np.asarray(ds["x"].values, dtype=float)
-        k_floor = K_FLOOR * float(ds.attrs["gas.bulk_velocity"]) ** 2
-        eps_floor = C_MU * k_floor**1.5 / float(ds.attrs["pipe.diameter"])
+        k_floor, eps_floor = turbulence_floors(float(ds.attrs["gas.bulk_velocity"]),
+                                               float(ds.attrs["pipe.diameter"]))
     except (KeyError, ValueError, TypeError):
         return {}
     at = (k <= k_floor * (1.0 + 1e-6)) | (eps <= eps_floor * (1.0 + 1e-6))  # (x, r, theta)

@@ -220,6 +220,12 @@ REUSE_FACTORISATION = True
 K_FLOOR = 1e-10  # k >= K_FLOOR U_b^2 and eps >= C_mu k_floor^(3/2) / D after every solve (PHYSICS.md 6.4)
 
 
+def turbulence_floors(bulk_velocity, diameter):
+    """(k, ε) floors of the solve [m²/s², m²/s³]: k ≥ K_FLOOR U_b², ε ≥ C_μ k_floor^(3/2) / D."""
+    k_floor = K_FLOOR * bulk_velocity**2
+    return k_floor, ke.C_MU * k_floor**1.5 / diameter
+
+
 class _StationSolver:
     """Outer iteration of the cross-section equations at one axial station."""
 
@@ -239,8 +245,7 @@ class _StationSolver:
         self.periodic = mesh.mode == "periodic"
         self.coupled = self.periodic  # the march converges fast with SIMPLEC (strong axial term)
         self.production_limit = production_limit
-        self.k_floor = K_FLOOR * bulk_velocity**2
-        self.eps_floor = ke.C_MU * self.k_floor**1.5 / mesh.diameter
+        self.k_floor, self.eps_floor = turbulence_floors(bulk_velocity, mesh.diameter)
         self.limited = 0
         self.floored = 0
         self._coupled_blocks = None  # constant blocks of the coupled cross-flow system
