@@ -103,6 +103,16 @@ def gas_dataset(case, mesh, field, *, timings: Mapping[str, float] | None = None
                          "coupling residual per pass; single-phase run: the gas solver's final residual"),
         "gas_residual": _var("gas_iteration", residuals, "1", "gas-solver residual history"),
     }
+    if getattr(field, "station_converged", None) is not None:  # rans.GasField of a solve (not a checkpoint's)
+        ch = np.asarray(field.station_change, dtype=np.float64).reshape(nx, 2)
+        data["gas_station_converged"] = xr.Variable(
+            "x", np.asarray(field.station_converged, dtype=np.int8).reshape(nx),
+            {"long_name": "whether the gas solve reached its tolerance at this station (1) or not (0)",
+             "units": "1"})
+        data["gas_station_change_velocity"] = _var(
+            "x", ch[:, 0], "1", "largest velocity change of the station's last gas-solver iteration, over U_b")
+        data["gas_station_change_turbulence"] = _var(
+            "x", ch[:, 1], "1", "largest relative change of k or epsilon in the station's last gas-solver iteration")
 
     converged = bool(field.converged)
     glob: dict[str, Any] = {

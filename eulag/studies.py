@@ -521,11 +521,29 @@ def _collision_momentum(ds, case: Case) -> float:
     return float(np.mean(v)) if v.size else math.nan
 
 
+def _gas_not_converged(ds, tol: float) -> str:
+    """Where the last gas solve missed its tolerance: the stations, where they lie, and how far
+    their last iteration still moved the velocity and k/ε (datasets before the per-station
+    record: the bare statement)."""
+    if "gas_station_converged" not in ds:
+        return "gas solve not converged"
+    bad = np.asarray(ds["gas_station_converged"].values) == 0
+    if not bad.any():
+        return "gas solve not converged"
+    x = np.asarray(ds["x"].values)[bad]
+    du = float(np.nanmax(ds["gas_station_change_velocity"].values[bad]))
+    dt = float(np.nanmax(ds["gas_station_change_turbulence"].values[bad]))
+    where = f"x = {x[0]:.3g} m" if x.size == 1 else f"x = {x.min():.3g}-{x.max():.3g} m"
+    return (f"gas solve not converged at {int(bad.sum())} of {bad.size} stations ({where}): their last "
+            f"iteration still changed the velocity by {du:.1e} U_b and k/eps by {dt:.1e} "
+            f"(tolerance {tol:g})")
+
+
 def _why_not_converged(ds, case: Case) -> str:
     """The first convergence criterion (eulag.coupling) a finished, unconverged run misses."""
     n = case.numerics
     if ds.attrs.get("gas_converged") == "false":
-        return "gas solve not converged"
+        return _gas_not_converged(ds, n.gas_tolerance)
     res = np.asarray(ds["residual"].values, dtype=float)
     finite = res[np.isfinite(res)]
     if finite.size == 0:

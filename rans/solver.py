@@ -141,7 +141,10 @@ class GasField:
     station_relaxation (nx,) the smaller of the implicit k-epsilon and momentum relaxations
     each station was iterated with (below the one asked for where a diverging station was
     retried, see _march_station); station_coupled (nx,) stations of the march retried with the
-    coupled cross-flow step.
+    coupled cross-flow step; station_converged (nx,) whether each station reached the
+    tolerance; station_change (nx, 2) the last outer iteration's largest change of the returned
+    state, of the velocity (/ U_b) and of k and epsilon (relative): how far an unconverged
+    station is from its tolerance, and in which equations.
     """
 
     mesh: PipeMesh
@@ -164,6 +167,8 @@ class GasField:
     floored: np.ndarray = field(default=None, repr=False)
     station_relaxation: np.ndarray = field(default=None, repr=False)
     station_coupled: np.ndarray = field(default=None, repr=False)
+    station_converged: np.ndarray = field(default=None, repr=False)
+    station_change: np.ndarray = field(default=None, repr=False)
 
     @property
     def nut(self):
@@ -248,6 +253,7 @@ class _StationSolver:
         self.k_floor, self.eps_floor = turbulence_floors(bulk_velocity, mesh.diameter)
         self.limited = 0
         self.floored = 0
+        self.last_change = (math.nan, math.nan)  # (velocity / U_b, k-eps relative) of the last iteration
         self._coupled_blocks = None  # constant blocks of the coupled cross-flow system
         # one lagged factorisation per equation, carried across iterations and stations
         # (rans.linalg.LaggedFactor: the direct solution to 1e-10 per cell, relative to the cell's
@@ -454,13 +460,10 @@ class _StationSolver:
 
         # ---------------- change and update
         ref_u = self.Ub
-        ch = max(
-            np.abs(ux_new - st.ux).max() / ref_u,
-            np.abs(uy - st.uy).max() / ref_u,
-            np.abs(uz - st.uz).max() / ref_u,
-            np.abs(k_new / st.k - 1.0).max(),
-            np.abs(eps_new / st.eps - 1.0).max(),
-        )
+        ch_u = max(np.abs(ux_new - st.ux).max(), np.abs(uy - st.uy).max(), np.abs(uz - st.uz).max()) / ref_u
+        ch_t = max(np.abs(k_new / st.k - 1.0).max(), np.abs(eps_new / st.eps - 1.0).max())
+        self.last_change = (float(ch_u), float(ch_t))
+        ch = max(ch_u, ch_t)
         st.ux, st.uy, st.uz, st.p, st.k, st.eps, st.flux, st.G = ux_new, uy, uz, p, k_new, eps_new, flux, G
         st.tau_w = tau_w
         return ch
@@ -650,6 +653,8 @@ def solve(
     floored = np.zeros(nx, dtype=np.int64)
     station_relax = np.full(nx, float(turbulence_relaxation))
     station_coupled = np.zeros(nx, dtype=bool)
+    station_ok = np.ones(nx, dtype=bool)
+    station_change = np.full((nx, 2), np.nan)
     converged = True
     bar = _progress(nx if mesh.mode == "developing" else max_iterations, progress)
 
@@ -693,6 +698,8 @@ def solve(
                 converged = True
                 break
         iters[0] = len(residuals)
+        station_ok[0] = converged
+        station_change[0] = solver.last_change
         bar.close()
         if not converged and require_convergence:
             raise SolverDivergence(
@@ -735,9 +742,10 @@ def solve(
                         hist[v] = np.where(be, p1, hist[v])
                         hist[key] = np.where(be, 1.0, c0)
             src = _source_slices(sources, i, n)
-            st, ok, iters[i], station_relax[i], station_coupled[i] = _march_station(
+            st, ok, iters[i], station_relax[i], station_coupled[i], station_change[i] = _march_station(
                 solver, prev1, hist, c0, h, src, laminar, turbulence_relaxation, station_iterations, stol,
                 residuals)
+            station_ok[i] = ok
             converged &= ok
             _store(out, G, tau, i, st)
             limited[i] = solver.limited
@@ -778,12 +786,15 @@ def solve(
         floored=floored,
         station_relaxation=station_relax,
         station_coupled=station_coupled,
+        station_converged=station_ok,
+        station_change=station_change,
     )
 
 
 def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_iterations, stol, residuals):
     """Iterate one station of the march to ``stol``: returns (state, converged, iterations,
-    relaxation used, whether the coupled cross-flow step was used).
+    relaxation used, whether the coupled cross-flow step was used, the last iteration's
+    (velocity, k-eps) change of the state, _StationSolver.last_change).
 
     The outer iteration lags mu_t, and the march's SIMPLEC cross-flow step is one pressure
     correction per iteration.  Where strong particle sinks have all but laminarised the flow
@@ -841,10 +852,10 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                     changes.append(ch)
                     it += 1
                     if it >= lo and ch < tol:
-                        return st, True, it, min(r, m), cp
+                        return st, True, it, min(r, m), cp, solver.last_change
                     if it == limit and _still_converging(changes, chunk, tol, STATION_EXTENSION * cap - it):
                         if at_cap is None:
-                            at_cap = (ch, st.copy(), it)
+                            at_cap = (ch, st.copy(), it, solver.last_change)
                         limit = min(limit + chunk, STATION_EXTENSION * cap)
             except SolverDivergence:
                 if at_cap is None:
@@ -852,12 +863,14 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                         raise
                     continue
                 # diverged while iterating on: the attempt ends where its iterations ran out
-                ch, st, it = at_cap
+                ch, st, it, last = at_cap
+            else:
+                last = solver.last_change
             if best is None or ch < best[0]:
-                best = (ch, st, it, min(r, m), cp)
+                best = (ch, st, it, min(r, m), cp, last)
     finally:
         solver.alpha_u, solver.coupled = alpha_u, coupled
-    return best[1], False, best[2], best[3], best[4]
+    return best[1], False, best[2], best[3], best[4], best[5]
 
 
 def _still_converging(changes, chunk, tol, left):

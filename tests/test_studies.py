@@ -425,6 +425,33 @@ def test_floored_cells_are_located_in_the_final_field():
     assert _floored_where(ds) == {}
 
 
+def test_an_unconverged_gas_solve_is_located_in_the_record(tmp_path):
+    """A run whose gas march stopped short at some stations says which, where, and how far their
+    last iteration still moved the velocity and k/eps: from the per-station record of a real
+    (small) march given three iterations per station."""
+    import xarray as xr
+
+    from eulag.output import gas_dataset
+    from eulag.studies import _gas_not_converged
+    from rans import GasProperties, PipeMesh, solve
+
+    case = Case.from_toml(CASES_DIR / "single_phase_pipe.toml")
+    mesh = PipeMesh.build(0.03, 0.3, "developing", axial_cells=12, radial_cells=8, azimuthal_cells=12,
+                          bulk_velocity=10.0, density=1.205, viscosity=1.81e-5)
+    f = solve(mesh, GasProperties(), 10.0, tol=1e-9, station_iterations=(2, 3))
+    ds = gas_dataset(case, mesh, f)
+    ds.to_netcdf(tmp_path / "g.nc")
+    ds = xr.open_dataset(tmp_path / "g.nc")
+    bad = ~f.station_converged
+    assert ds.attrs["gas_converged"] == "false" and bad.any()
+    assert np.array_equal(ds["gas_station_converged"].values == 0, bad)
+    text = _gas_not_converged(ds, 1e-9)
+    assert text.startswith(f"gas solve not converged at {bad.sum()} of 12 stations (x = ")
+    assert f"{f.station_change[bad, 0].max():.1e} U_b" in text
+    assert f"k/eps by {f.station_change[bad, 1].max():.1e}" in text
+    assert _gas_not_converged(ds.drop_vars("gas_station_converged"), 1e-9) == "gas solve not converged"
+
+
 def test_a_run_failing_after_a_resume_keeps_its_earlier_passes(tmp_path):
     """The failed record of a resumed run counts the passes run before the resume: their
     residuals and relaxations (from the checkpoint) and their time."""
