@@ -731,6 +731,8 @@ class CouplingLoop:
     # ------------------------------------------------------------------ checkpoint
     _GAS = ("ux", "uy", "uz", "p", "k", "epsilon", "pressure_gradient", "wall_shear", "residuals",
             "station_iterations")
+    #: kept when present (older checkpoints lack them: None, the dataset then leaves them out)
+    _GAS_OPTIONAL = ("station_converged", "station_change")
 
     def _save(self):
         arrays = {}
@@ -739,6 +741,9 @@ class CouplingLoop:
                 arrays[f"{tag}_{name}"] = np.asarray(getattr(g, name))
             if g.face_flux is not None:
                 arrays[f"{tag}_face_flux"] = g.face_flux
+            for name in self._GAS_OPTIONAL:
+                if getattr(g, name) is not None:
+                    arrays[f"{tag}_{name}"] = np.asarray(getattr(g, name))
             arrays[f"{tag}_converged"] = np.asarray(bool(g.converged))
         if self.sources is not None:
             for k, v in self.sources.items():
@@ -809,6 +814,7 @@ class CouplingLoop:
 
     def _gas_from(self, data, tag):
         kw = {name: data[f"{tag}_{name}"] for name in self._GAS}
+        kw.update({name: data.get(f"{tag}_{name}") for name in self._GAS_OPTIONAL})
         return rans.GasField(mesh=self.mesh, gas=self.gas_props, bulk_velocity=self.case.gas.bulk_velocity,
                              converged=bool(data[f"{tag}_converged"]),
                              face_flux=data.get(f"{tag}_face_flux"), **kw)
