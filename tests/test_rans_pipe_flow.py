@@ -315,6 +315,50 @@ def test_the_march_records_which_stations_converged_and_their_last_change():
     assert full.converged and full.station_converged.all() and np.all(full.station_change.max(axis=1) < tol)
 
 
+def test_a_stalled_station_is_retried_with_k_eps_relaxation_and_keeps_the_fixed_point(monkeypatch):
+    """A station that stalls without relaxation (SIMPLEC and the coupled step) is iterated again
+    with implicit k-eps relaxation 0.5 and no momentum relaxation, which keeps the fixed point:
+    the march converges there to the field it gives without the stall (the near-wall
+    oscillation of scene h's final pass, README "Coupling" 5)."""
+    from rans import solver as S
+
+    U = 10.0
+    m = PipeMesh.build(D, 0.3, "developing", axial_cells=12, radial_cells=8, azimuthal_cells=12,
+                       bulk_velocity=U, density=RHO, viscosity=MU)
+    plain = solve(m, GAS, U, tol=1e-9)
+    orig = S._StationSolver._iterate
+    seen = []
+
+    def stalls_unrelaxed(self, st, hist, c0, dx, src, laminar, relax_turb):
+        ch = orig(self, st, hist, c0, dx, src, laminar, relax_turb)
+        if self.station == 7:
+            seen.append((relax_turb, self.alpha_u, self.coupled))
+        return max(ch, 1e-3) if self.station == 7 and relax_turb == 1.0 else ch
+
+    monkeypatch.setattr(S._StationSolver, "_iterate", stalls_unrelaxed)
+    f = solve(m, GAS, U, tol=1e-9, station_iterations=(2, 60))
+    assert f.converged and f.station_converged.all()
+    assert f.station_relaxation[7] == 0.5 and not f.station_coupled[7]
+    assert np.all(np.delete(f.station_relaxation, 7) == 1.0)
+    assert {a for a in seen} == {(1.0, 1.0, False), (1.0, 1.0, True), (0.5, 1.0, False)}  # never momentum relaxation
+    for name in ("ux", "uy", "uz", "k", "epsilon"):
+        dev = np.abs(getattr(f, name) - getattr(plain, name)).max() / np.abs(getattr(plain, name)).max()
+        assert dev < 1e-7, name
+
+    def stalls_always(self, st, hist, c0, dx, src, laminar, relax_turb):
+        ch = orig(self, st, hist, c0, dx, src, laminar, relax_turb)
+        if self.station == 7:
+            seen.append((relax_turb, self.alpha_u, self.coupled))
+        return max(ch, 1e-3) if self.station == 7 else ch
+
+    seen.clear()
+    monkeypatch.setattr(S._StationSolver, "_iterate", stalls_always)
+    g = solve(m, GAS, U, tol=1e-9, station_iterations=(2, 60))
+    assert not g.converged and np.flatnonzero(~g.station_converged).tolist() == [7]
+    assert all(a[1] == 1.0 for a in seen) and (0.5, 1.0, True) in seen  # k-eps relaxation with both steps, no more
+    assert g.station_relaxation[7] == 1.0  # the unrelaxed attempt had the smallest (scaled) change
+
+
 @pytest.mark.parametrize("rate, iterates_on", [(0.9, True), (0.995, False)])
 def test_a_slowly_but_steadily_converging_station_iterates_on(monkeypatch, rate, iterates_on):
     """A station whose change is still falling steadily when its iterations run out iterates on
@@ -386,7 +430,8 @@ def test_a_station_that_diverges_while_iterating_on_keeps_the_state_where_its_it
     monkeypatch.setattr(S._StationSolver, "_iterate", slow_then_diverging)
     f = solve(m, GAS, U, tol=1e-9, station_iterations=(2, 60))
     assert not f.converged and f.station_iterations[7] == 60
-    assert set(calls) == {(False, 1.0, 1.0), (True, 1.0, 1.0)}  # SIMPLEC, then the coupled step
+    # SIMPLEC, the coupled step, then both with k-eps relaxation 0.5 (which diverge before their cap)
+    assert set(calls) == {(False, 1.0, 1.0), (True, 1.0, 1.0), (False, 1.0, 0.5), (True, 1.0, 0.5)}
     assert all(n == 71 for n in calls.values())
 
 
