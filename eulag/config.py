@@ -485,6 +485,13 @@ class PhysicsConfig(_Section):
         consistent with the gas k; where particles carry their fluid-velocity memory into a
         pocket the sink has already drained, it stops the sink from feeding on energy the gas
         no longer has); ``"none"``: the seed's estimator as sampled.
+    partner_correlation : str
+        Where the stochastic collision model takes the Stokes number of its partner
+        correlation R(St) = exp(-0.55 St^0.4): ``"particle"`` (default; at the real particle,
+        with T_L of the gas at its position) or ``"cell"`` (once per cell, from the cell-mean
+        slip and the cell-centre k, eps, as the mean collision frequency). Same constants; the
+        partner is drawn about the cell mean either way (README "Coupling" 6: a per-particle R
+        that varies across the wall cell makes the collisions' net momentum non-zero).
     """
 
     section: ClassVar[str] = "physics"
@@ -508,6 +515,8 @@ class PhysicsConfig(_Section):
                            le=3.0)
     k_source_scaling: str = _param(STRING, "scaling of the sampled turbulence source",
                                    default="seen-energy", choices=("seen-energy", "none"))
+    partner_correlation: str = _param(STRING, "where the collision partner's correlation R(St) is taken",
+                                      default="particle", choices=("particle", "cell"))
 
     def _resolve_and_check(self):
         if self.magnus_lift is None:
@@ -634,6 +643,18 @@ _SECTIONS: dict[str, type[_Section]] = {
     "numerics": NumericsConfig,
 }
 _TOP_KEYS = ["name", "description", *_SECTIONS]
+
+#: Case keys added after run records and checkpoints began (c4a33a1), each with the value that
+#: does what eulag did before the key existed. A stored case without the key is the same case
+#: as one holding that value, so comparisons of stored cases drop it there
+#: (:func:`comparable_attrs`); the datasets' attributes keep every key.
+LATER_KEYS: dict[str, Any] = {"physics.partner_correlation": "particle"}
+
+
+def comparable_attrs(attrs: dict) -> dict:
+    """``attrs`` (as :meth:`Case.to_attrs` gives them) without the keys of ``LATER_KEYS``
+    that hold their earlier behaviour: the form in which stored cases are compared."""
+    return {k: v for k, v in attrs.items() if not (k in LATER_KEYS and v == LATER_KEYS[k])}
 _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
 _NAME_ALLOWED = ("a string of letters, digits, _ . + - starting with a letter or digit, "
                  "at most 100 characters (used as the output file name)")

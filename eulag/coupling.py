@@ -293,7 +293,7 @@ def physics_options(case):
         saffman_mei_lift=ph.saffman_mei_lift, magnus_lift=ph.magnus_lift, magnus_model=ph.magnus_model,
         rotation=ph.rotation, langevin=ph.langevin, drift_correction=ph.langevin_drift_correction,
         gravity=ph.gravity, inter_particle_collisions=ph.inter_particle_collisions,
-        step_rule=case.numerics.step_rule,
+        step_rule=case.numerics.step_rule, partner_correlation=ph.partner_correlation,
         wall=WallOptions(impact_angle=w.impact_angle, shadow_effect=w.shadow_effect,
                          lateral_roughness=w.lateral_roughness, rotation=ph.rotation),
         interparticle=InterparticleOptions(restitution=p.restitution, friction=p.friction,
@@ -785,6 +785,16 @@ class CouplingLoop:
         if "src_momentum" in data:
             self.sources = {k[4:]: data[k] for k in data if k.startswith("src_")}
         self.stats = data.get("stats")
+        if self.stats is not None:
+            from particles.layout import NCS
+
+            if self.stats.shape[1] == NCS - 1:  # a checkpoint from before the last column, CS_ST
+                st = particles.cell_stokes(self.stats, self.gas, self.spec)
+                self.stats = np.ascontiguousarray(np.column_stack([self.stats, st]))
+            if self.stats.shape[1] != NCS:
+                raise CouplingError(f"{self.checkpoint}: its collision statistics hold {self.stats.shape[1]} "
+                                    f"values per cell, this eulag's tracker reads {NCS}; remove it or run "
+                                    "without --resume")
         if "window_0" in data:
             from particles.layout import Layout
 
@@ -858,7 +868,11 @@ def _json_default(v):
 
 
 def _canonical(d):
-    return json.dumps(d, sort_keys=True, default=_json_default)
+    """A stored case (flattened attributes) as the string checkpoints are compared by."""
+    from eulag.config import comparable_attrs
+
+    return json.dumps(comparable_attrs(d) if isinstance(d, dict) else d, sort_keys=True,
+                      default=_json_default)
 
 
 def _atomic_savez(path, arrays):

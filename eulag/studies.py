@@ -53,7 +53,7 @@ from typing import Any, Callable
 import numpy as np
 
 import eulag
-from eulag.config import CASES_DIR, Case, CaseError
+from eulag.config import CASES_DIR, Case, CaseError, comparable_attrs
 
 __all__ = ["add_arguments", "STUDIES", "QUICK_NUMERICS", "RunRecord", "run_case", "machine_info",
            "profile_deviation", "pareto_front", "scene_cases", "stability_cases",
@@ -220,7 +220,7 @@ def _canonical(case: Case) -> str:
         if isinstance(v, np.generic):
             return v.item()
         return str(v)
-    return json.dumps(case.to_attrs(), sort_keys=True, default=default)
+    return json.dumps(comparable_attrs(case.to_attrs()), sort_keys=True, default=default)
 
 
 def _same_case(attrs: dict, case: Case) -> bool:
@@ -332,7 +332,7 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             try:
                 with np.load(ckpt, allow_pickle=False) as z:
                     meta = json.loads(bytes(z["meta"]).decode())
-                if meta.get("case") != json.loads(_canonical(case)):
+                if comparable_attrs(meta.get("case") or {}) != json.loads(_canonical(case)):
                     ckpt.unlink()
             except Exception:  # noqa: BLE001 - unreadable or foreign checkpoint: start afresh
                 ckpt.unlink(missing_ok=True)

@@ -10,7 +10,7 @@
 
 from .fields import FieldTable
 from .kernel import PhysicsOptions, make_motion, make_tracker
-from .tracking import ParticleSpec, Sample, TrackSettings, batch_plan, track
+from .tracking import ParticleSpec, Sample, TrackSettings, batch_plan, cell_stokes, track
 
 __all__ = ["FieldTable", "PhysicsOptions", "make_motion", "make_tracker", "ParticleSpec", "Sample",
-           "TrackSettings", "batch_plan", "track"]
+           "TrackSettings", "batch_plan", "cell_stokes", "track"]

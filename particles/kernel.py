@@ -67,7 +67,7 @@ from .layout import (A_BETA, A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VIS
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP,
                      B_RESIDENCE, B_WALL, B_WEIGHT, NBUD, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP,
                      C_REBOUNDS, C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK,
-                     CS_RMS, CS_U, CS_WM, CS_WRMS, N_ANGLE_BINS, N_SPEED_BINS, NACC, NWALL,
+                     CS_RMS, CS_ST, CS_U, CS_WM, CS_WRMS, N_ANGLE_BINS, N_SPEED_BINS, NACC, NWALL,
                      P_DGAMMA, P_DP, P_GRAV, P_INJ_RMS, P_MAXSTEPS, P_MU, P_NDOT, P_RHO_F,
                      P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, S_EXITED, S_LOST,
                      S_STUCK, W_ANGLE, W_COUNT, W_SPEED)
@@ -96,6 +96,13 @@ class PhysicsOptions:
     inter_particle_collisions : bool — terms of PHYSICS.md §1–§4 (magnus needs rotation).
     magnus_model : "lun-liu" | "oesterle-bui-dinh".
     step_rule : "default" | "paper".
+    partner_correlation : "particle" | "cell" — where the Stokes number St = τ_p/T_L of the
+        fictitious partner's correlation R(St) is taken: at the real particle (its step's τ_p,
+        T_L of the gas at its position: in the wall cell ε follows the wall function, so R
+        varies across the cell; v0.1.0) or once per cell (``layout.CS_ST``, from the cell
+        statistics, as the cell's mean collision frequency takes it).  With the partner drawn
+        about the cell mean, a per-particle R that varies together with u₁ − ū₁ inside a cell
+        makes the collisions' net momentum non-zero (README "Coupling" 6).
     wall : collisions.WallOptions;  interparticle : collisions.InterparticleOptions.
     """
 
@@ -108,6 +115,7 @@ class PhysicsOptions:
     gravity: bool = True
     inter_particle_collisions: bool = True
     step_rule: str = "default"
+    partner_correlation: str = "particle"
     wall: WallOptions = field(default_factory=WallOptions)
     interparticle: InterparticleOptions = field(default_factory=InterparticleOptions)
 
@@ -118,6 +126,8 @@ class PhysicsOptions:
             raise ValueError(f"magnus_model = {self.magnus_model!r}: allowed lun-liu, oesterle-bui-dinh")
         if self.step_rule not in ("default", "paper"):
             raise ValueError(f"step_rule = {self.step_rule!r}: allowed default, paper")
+        if self.partner_correlation not in ("particle", "cell"):
+            raise ValueError(f"partner_correlation = {self.partner_correlation!r}: allowed particle, cell")
         if self.wall.rotation != self.rotation:
             object.__setattr__(self, "wall", WallOptions(**{**self.wall.__dict__, "rotation": self.rotation}))
         if self.interparticle.rotation != self.rotation:
@@ -425,6 +435,7 @@ def make_tracker(options=PhysicsOptions()):
     drift = options.drift_correction
     pp = options.inter_particle_collisions
     paper_rule = options.step_rule == "paper"
+    cell_corr = options.partner_correlation == "cell"
     rotation = options.rotation
     gravity = options.gravity
 
@@ -731,10 +742,13 @@ def make_tracker(options=PhysicsOptions()):
                                 rms[c] = stats[cell, CS_RMS + c]
                                 wmean[c] = stats[cell, CS_WM + c]
                                 wrms[c] = stats[cell, CS_WRMS + c]
-                            t_lc = C_T * (2.0 * fvals[F_K] / 3.0) / fvals[F_EPS]
+                            if cell_corr:
+                                st_pp = stats[cell, CS_ST]
+                            else:
+                                st_pp = tau_step / (C_T * (2.0 * fvals[F_K] / 3.0) / fvals[F_EPS])
                             dv[:] = 0.0
                             code = _PP(vel, omega, d, mean_own, d, mean_own, rms, wmean, wrms,
-                                                stats[cell, CS_N], tau_step / t_lc, dt, rng_pp, dv, partner)
+                                       stats[cell, CS_N], st_pp, dt, rng_pp, dv, partner)
                             if code > 0:
                                 out[off_cnt + C_PP] += 1.0
                                 for c in range(3):

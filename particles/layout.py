@@ -75,7 +75,8 @@ CS_RMS = 5  # 5..7 rms velocity [m/s]
 CS_WM = 8  # 8..10 mean spin [rad/s]
 CS_WRMS = 11  # 11..13 spin rms [rad/s]
 CS_OK = 14  # 1 if the cell is sampled well enough for collisions
-NCS = 15
+CS_ST = 15  # Stokes number tau_p/T_L of the cell (cell-mean slip, cell-centre k and eps) [-]
+NCS = 16
 
 # ---------------------------------------------------------------- runtime parameters
 P_RHO_F = 0  # gas density [kg/m3]

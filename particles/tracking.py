@@ -29,14 +29,14 @@ from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker
 from .layout import (A_BETA, A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP, B_RESIDENCE,
                      B_WALL, B_WEIGHT, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP, C_REBOUNDS,
-                     C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK, CS_RMS, CS_U,
+                     C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK, CS_RMS, CS_ST, CS_U,
                      CS_WM, CS_WRMS, N_ANGLE_BINS, N_SPEED_BINS, NACC, NCNT, NCS, NPRM, NWALL, P_DGAMMA,
                      P_DP, P_GRAV, P_INJ_RMS, P_MAXSTEPS, P_MIN_VISITS, P_MU, P_NDOT, P_RHO_F,
                      P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, W_ANGLE, W_COUNT, W_SPEED,
                      Layout)
 
 __all__ = ["ParticleSpec", "TrackSettings", "Sample", "track", "batch_plan", "GRAVITY", "PassInputs",
-           "prepare_pass", "run_superbatch", "fold_superbatches", "make_sample"]
+           "prepare_pass", "run_superbatch", "fold_superbatches", "make_sample", "cell_stokes"]
 
 GRAVITY = 9.81  # m s-2
 C_EPS3 = 1.8  # S_eps = C_eps3 (eps/k) S_k (seed; PHYSICS.md §5.1, §12)
@@ -61,6 +61,25 @@ class ParticleSpec:
     @property
     def mass(self):
         return self.density * math.pi * self.diameter**3 / 6.0
+
+
+def cell_stokes(stats, gas, spec):
+    """Stokes number St = τ_p/T_L of each cell, (ncell,), for the partners' correlation
+    R(St) = exp(−0.55 St^0.4) (Sommerfeld 2001; PHYSICS.md §4.1) taken once per cell.
+
+    ``stats``: (ncell, NCS) cell statistics (their mean velocity gives the cell-mean slip of
+    τ_p, Schiller–Naumann); T_L = C_T (2/3) k/ε from the gas cell-centre values.
+    """
+    mu = gas.gas.viscosity
+    rho = gas.gas.density
+    d = spec.diameter
+    slip = np.sqrt((gas.ux.ravel() - stats[:, CS_U]) ** 2 + (gas.uy.ravel() - stats[:, CS_U + 1]) ** 2
+                   + (gas.uz.ravel() - stats[:, CS_U + 2]) ** 2)
+    re_p = rho * d * slip / mu
+    f_d = np.where(re_p > 1000.0, 0.44 * re_p / 24.0, 1.0 + 0.15 * re_p**0.687)
+    tau_p = spec.density * d * d / (18.0 * mu * f_d)
+    t_l = C_T * (2.0 / 3.0) * gas.k.ravel() / gas.epsilon.ravel()
+    return tau_p / t_l
 
 
 @dataclass(frozen=True)
@@ -312,8 +331,9 @@ class Sample:
 
         Number density, mean and rms velocity, mean and rms spin, the mean collision frequency
         (PHYSICS.md §7, for the step limit; with the Sommerfeld correlation R(St), St = τ_p/T_L
-        from the cell-mean slip and the gas k, ε when ``gas`` is given), and a flag for cells
-        with at least ``min_visits`` samples.
+        from the cell-mean slip and the gas k, ε when ``gas`` is given), that Stokes number
+        (``cell_stokes``; R of the partners with ``partner_correlation = "cell"``), and a flag
+        for cells with at least ``min_visits`` samples.
         """
         nx, nr, nt = self.mesh.shape
         st = np.zeros((nx, nr, nt, NCS))
@@ -326,17 +346,12 @@ class Sample:
             st[..., CS_WRMS + c] = np.where(ok, self.spin_rms(c), 0.0)
         sigma = np.sqrt(np.mean(st[..., CS_RMS:CS_RMS + 3] ** 2, axis=-1))
         d = self.spec.diameter
-        corr = np.zeros((nx, nr, nt))
         if gas is not None:
-            mu = gas.gas.viscosity
-            rho = gas.gas.density
-            slip = np.sqrt((gas.ux - st[..., CS_U]) ** 2 + (gas.uy - st[..., CS_U + 1]) ** 2
-                           + (gas.uz - st[..., CS_U + 2]) ** 2)
-            re_p = rho * d * slip / mu
-            f_d = np.where(re_p > 1000.0, 0.44 * re_p / 24.0, 1.0 + 0.15 * re_p**0.687)
-            tau_p = self.spec.density * d * d / (18.0 * mu * f_d)
-            t_l = C_T * (2.0 / 3.0) * gas.k / gas.epsilon
-            corr = np.exp(-0.55 * (tau_p / t_l) ** 0.4)
+            st[..., CS_ST] = cell_stokes(st.reshape(-1, NCS), gas, self.spec).reshape(nx, nr, nt)
+            corr = np.exp(-0.55 * st[..., CS_ST] ** 0.4)
+        else:  # no gas: uncorrelated partners (R = 0, St = inf)
+            st[..., CS_ST] = np.inf
+            corr = np.zeros((nx, nr, nt))
         freq = np.empty((nx, nr, nt))
         flat_n, flat_s, flat_c = st[..., CS_N].ravel(), sigma.ravel(), corr.ravel()
         fr = freq.ravel()

@@ -86,6 +86,8 @@ WRONG = {
                          "pipe.sections", "-1.0"),
     "unknown mode": (with_line("pipe", 'mode = "periodical"'), "pipe.mode", "periodical"),
     "unknown coupling": (with_line("physics", 'coupling = "3-way"'), "physics.coupling", "3-way"),
+    "unknown partner correlation": (with_line("physics", 'partner_correlation = "pair"'),
+                                    "physics.partner_correlation", "pair"),
     "collisions without four-way": (with_line("physics", 'coupling = "two-way"\n'
                                                          "inter_particle_collisions = true"),
                                     "physics.inter_particle_collisions", "true"),

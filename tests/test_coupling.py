@@ -112,6 +112,38 @@ def test_checkpoint_from_before_the_linearised_drag_resumes(tmp_path):
     np.testing.assert_allclose(resumed.sources["momentum"], want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
 
 
+def test_checkpoint_from_before_the_partner_correlation_key_resumes(tmp_path):
+    """A checkpoint of v0.1.0's layout, without the case key physics.partner_correlation and
+    without the statistics' Stokes-number column (CS_ST), is the same case at the key's
+    default, resumes, and gains the column from its statistics and gas (cell_stokes)."""
+    import json
+
+    from particles import cell_stokes
+    from particles.layout import CS_ST, NCS
+
+    case = small_case(**{"numerics.max_passes": 4})
+    ckpt = tmp_path / "out.nc.checkpoint"
+    loop = CouplingLoop(case, checkpoint=ckpt)
+    loop.step()
+    with np.load(ckpt) as z:
+        data = {k: z[k] for k in z.files}
+    assert data["stats"].shape[1] == NCS
+    meta = json.loads(bytes(data["meta"]).decode())
+    assert meta["case"].pop("physics.partner_correlation") == "particle"
+    data["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+    data["stats"] = data["stats"][:, :CS_ST]
+    np.savez(ckpt, **data)
+    ckpt.with_suffix(".checkpoint.npz").replace(ckpt)
+    resumed = CouplingLoop(case, checkpoint=ckpt, resume=True)
+    assert resumed.stats.shape[1] == NCS
+    np.testing.assert_array_equal(resumed.stats[:, CS_ST], cell_stokes(resumed.stats, resumed.gas, resumed.spec))
+    np.testing.assert_array_equal(resumed.stats[:, :CS_ST], data["stats"])
+    resumed.step()  # and the tracker takes them
+    with pytest.raises(Exception, match="different case"):  # the key at another value is another case
+        CouplingLoop(small_case(**{"numerics.max_passes": 4, "physics.partner_correlation": "cell"}),
+                     checkpoint=ckpt, resume=True)
+
+
 def test_checkpoint_of_an_older_result_layout_is_refused(tmp_path):
     """Averaged passes stored with another tracker layout (the counters grew in 996d988) would
     fail later with a shape error: refused at once, with the remedy."""
