@@ -574,7 +574,9 @@ class CouplingLoop:
                 f"pass {m}: the stochastic inter-particle collisions gave the particles {excess:+.3g} of "
                 f"their axial momentum inflow (mean of the last {COLLISION_MOMENTUM_LIMIT_PASSES} passes, "
                 f"each beyond ±{COLLISION_MOMENTUM_LIMIT:g}, the loop's limit); real collisions conserve "
-                "momentum, so this is the fictitious-partner model's error (README \"Coupling\" 6)")
+                "momentum, so this is the fictitious-partner model's error (README \"Coupling\" 6"
+                + ('; physics.partner_correlation = "cell" removes the part that comes from R(St) '
+                   "varying inside a cell)" if self.case.physics.partner_correlation == "particle" else ")"))
         if self.phase == "final":
             self._add_to_window(sample)
             self.final_left -= 1

@@ -612,8 +612,10 @@ def test_the_loop_stops_on_the_collision_momentum_guard(monkeypatch, tmp_path):
     case = small_case(**{"numerics.max_passes": 8})
     ckpt = tmp_path / "c.checkpoint"
     loop = CouplingLoop(case, checkpoint=ckpt)
-    with pytest.raises(coupling.CouplingError, match=r"pass 5: the stochastic inter-particle collisions"):
+    with pytest.raises(coupling.CouplingError, match=r"pass 5: the stochastic inter-particle collisions") as info:
         loop.run()
+    assert 'physics.partner_correlation = "cell"' in str(info.value)  # the remedy found for tracers
+    assert "\n" not in str(info.value)
     assert len(loop.history.collision_momentum) == 5
     with np.load(ckpt) as z:
         assert json.loads(bytes(z["meta"]).decode())["pass_index"] == 4
