@@ -112,6 +112,7 @@ import numpy as np
 
 import particles
 import rans
+from particles.layout import CS_ST
 from collisions import InterparticleOptions, WallOptions
 
 __all__ = ["CouplingLoop", "PassState", "CouplingError", "run", "physics_options", "particle_spec",
@@ -506,6 +507,11 @@ class CouplingLoop:
             self.phase = "final"
         parcels_m = n.parcels if self.phase == "final" else n.parcels_start
         stats = self.stats if self.physics.inter_particle_collisions else None
+        if stats is not None and self.physics.partner_correlation == "cell":
+            # the partners' R(St) with T_L of the gas this pass runs in (the statistics were taken
+            # in the previous gas: after the tracers' first pass its turbulence had collapsed)
+            stats = stats.copy()
+            stats[:, CS_ST] = particles.cell_stokes(stats, self.gas, self.spec)
         t0 = time.perf_counter()
         sample = self.tracker(self.mesh, self.gas, self.spec, self.physics, parcels=parcels_m,
                               seed=n.seed, pass_index=m, stats=stats, settings=self.settings)
