@@ -144,6 +144,31 @@ def test_checkpoint_from_before_the_partner_correlation_key_resumes(tmp_path):
                      checkpoint=ckpt, resume=True)
 
 
+def test_cell_partner_correlation_takes_the_gas_of_the_pass():
+    """With physics.partner_correlation = "cell" the tracker gets the cells' Stokes number
+    with T_L of the gas it tracks in, not of the gas the statistics were taken in."""
+    from particles import cell_stokes
+    from particles.layout import CS_ST
+
+    loop = CouplingLoop(small_case(**{"physics.partner_correlation": "cell"}))
+    assert loop.physics.partner_correlation == "cell"
+    seen = []
+    track = loop.tracker
+
+    def spy(mesh, gas, spec, physics, *, stats=None, **kw):
+        if stats is not None:
+            seen.append((stats[:, CS_ST].copy(), cell_stokes(stats, gas, spec), loop.stats[:, CS_ST].copy()))
+        return track(mesh, gas, spec, physics, stats=stats, **kw)
+
+    loop.tracker = spy
+    for _ in range(3):
+        loop.step()
+    assert len(seen) == 2  # passes 2 and 3 (the first has no statistics)
+    for given, want, kept in seen:
+        np.testing.assert_array_equal(given, want)
+        assert not np.allclose(given, kept, rtol=1e-3)  # the statistics' own were of another gas
+
+
 def test_checkpoint_of_an_older_result_layout_is_refused(tmp_path):
     """Averaged passes stored with another tracker layout (the counters grew in 996d988) would
     fail later with a shape error: refused at once, with the remedy."""
