@@ -318,7 +318,8 @@ def make_interparticle_collision(options=InterparticleOptions()):
               not stored)
     number_density  n_p of real particles in the cell [1/m3] (of the partner class if the
               caller draws from a per-class pdf, else the total)
-    stokes    St = τ_p/T_L of the real particle [-] (R = exp(−0.55 St^0.4))
+    stokes    St = τ_p/T_L [-] (R = exp(−0.55 St^0.4)): of the real particle, or of its cell
+              (the tracker's ``partner_correlation``; README "Coupling" 6)
     dt        time step [s]
     rng       int64[5] state of ``collisions.random`` (stream STREAM_COLLISION; advanced)
     dv        float64[3] collision velocity jump accumulator [m/s] (+= v_after − v_before)

@@ -489,9 +489,11 @@ class PhysicsConfig(_Section):
         Where the stochastic collision model takes the Stokes number of its partner
         correlation R(St) = exp(-0.55 St^0.4): ``"particle"`` (default; at the real particle,
         with T_L of the gas at its position) or ``"cell"`` (once per cell, from the cell-mean
-        slip and the cell-centre k, eps, as the mean collision frequency). Same constants; the
-        partner is drawn about the cell mean either way (README "Coupling" 6: a per-particle R
-        that varies across the wall cell makes the collisions' net momentum non-zero).
+        slip of the statistics and the cell-centre k, eps of the gas the pass runs in). Same
+        constants; the partner is drawn about the cell mean either way (README "Coupling" 6: a
+        per-particle R that varies across the wall cell makes the collisions' net momentum
+        non-zero). Every committed study result ran with ``"particle"``; ``"cell"`` has not yet
+        finished a coupled run.
     """
 
     section: ClassVar[str] = "physics"

@@ -99,8 +99,8 @@ class PhysicsOptions:
     partner_correlation : "particle" | "cell" — where the Stokes number St = τ_p/T_L of the
         fictitious partner's correlation R(St) is taken: at the real particle (its step's τ_p,
         T_L of the gas at its position: in the wall cell ε follows the wall function, so R
-        varies across the cell; v0.1.0) or once per cell (``layout.CS_ST``, from the cell
-        statistics, as the cell's mean collision frequency takes it).  With the partner drawn
+        varies across the cell; v0.1.0) or once per cell (the statistics' ``layout.CS_ST``,
+        ``tracking.cell_stokes``).  With the partner drawn
         about the cell mean, a per-particle R that varies together with u₁ − ū₁ inside a cell
         makes the collisions' net momentum non-zero (README "Coupling" 6).
     wall : collisions.WallOptions;  interparticle : collisions.InterparticleOptions.

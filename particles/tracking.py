@@ -332,8 +332,10 @@ class Sample:
         Number density, mean and rms velocity, mean and rms spin, the mean collision frequency
         (PHYSICS.md §7, for the step limit; with the Sommerfeld correlation R(St), St = τ_p/T_L
         from the cell-mean slip and the gas k, ε when ``gas`` is given), that Stokes number
-        (``cell_stokes``; R of the partners with ``partner_correlation = "cell"``), and a flag
-        for cells with at least ``min_visits`` samples.
+        (``cell_stokes``, ``CS_ST``; inf without ``gas``, i.e. uncorrelated partners; with
+        ``partner_correlation = "cell"`` the partners' R takes it, and the coupling loop
+        recomputes it with the gas of the next pass), and a flag for cells with at least
+        ``min_visits`` samples.
         """
         nx, nr, nt = self.mesh.shape
         st = np.zeros((nx, nr, nt, NCS))
@@ -445,6 +447,8 @@ def prepare_pass(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, 
         physics = PhysicsOptions(**{**physics.__dict__, "inter_particle_collisions": False})
     if stats is None:
         stats = np.zeros((ncell, NCS))
+    elif stats.shape != (ncell, NCS):  # the kernel reads the rows unchecked
+        raise ValueError(f"stats: shape {stats.shape}, the tracker reads ({ncell}, {NCS}) (cells, layout.NCS)")
     prm = parameters(spec, gas.gas, mesh, settings, parcels, physics.gravity)
     return PassInputs(table=table, stats=stats, prm=prm, physics=physics, seed=int(seed),
                       pass_index=int(pass_index), parcels=int(parcels), starts=starts, counts=counts,

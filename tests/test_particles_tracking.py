@@ -243,10 +243,13 @@ def test_partners_about_the_cell_mean_need_one_correlation_per_cell():
         n = s.counts["particle_collisions"]
         assert n > 30000 and s.counts["lost"] == 0
         se = math.sqrt(s.var[s._lay.budget + B_PP])
-        per_collision[where] = (s.budget["particle_collisions"][0] / (w_m * n), se / (w_m * n))
-    mean, se = per_collision["cell"]
+        per_collision[where] = (s.budget["particle_collisions"][0] / (w_m * n), se / (w_m * n), n)
+    # R per cell is of the size of R per particle (read from the statistics: with R = 0, i.e. a
+    # wrong or infinite St, the collisions quadruple: 235736 against ~61000 measured)
+    assert per_collision["cell"][2] == pytest.approx(per_collision["particle"][2], rel=0.1)
+    mean, se, _ = per_collision["cell"]
     assert abs(mean) < 3.0 * se, per_collision
-    mean, se = per_collision["particle"]
+    mean, se, _ = per_collision["particle"]
     assert mean > 5.0 * se and mean > 0.01, per_collision  # m/s
 
 
@@ -315,3 +318,14 @@ def test_numba_cache_entries_written_at_once_keep_their_own_data(tmp_path, monke
     reader = cls(str(tmp_path), "kernel", stamp)
     assert reader.load("with collisions") == "code of with collisions"
     assert reader.load("without") == "code of without"
+
+
+def test_statistics_of_another_layout_are_refused():
+    """The kernel reads the statistics' rows unchecked: an array of another shape (a v0.1.0
+    layout without CS_ST, say) is refused before tracking."""
+    from particles.layout import NCS
+
+    mesh, gas = periodic_pipe()
+    stats = np.zeros((mesh.nx * mesh.nr * mesh.nt, NCS - 1))
+    with pytest.raises(ValueError, match=r"stats: shape .* the tracker reads"):
+        track(mesh, gas, BASE, PhysicsOptions(), parcels=10, stats=stats)
