@@ -223,6 +223,17 @@ def _canonical(case: Case) -> str:
     return json.dumps(comparable_attrs(case.to_attrs()), sort_keys=True, default=default)
 
 
+def checkpoint_of(ckpt: Path, case: Case) -> bool:
+    """Whether the coupling checkpoint ``ckpt`` is readable and of ``case`` (its stored case
+    compared as records are, so one from before a key of ``config.LATER_KEYS`` counts)."""
+    try:
+        with np.load(ckpt, allow_pickle=False) as z:
+            meta = json.loads(bytes(z["meta"]).decode())
+        return comparable_attrs(meta.get("case") or {}) == json.loads(_canonical(case))
+    except Exception:  # noqa: BLE001 - unreadable or foreign: not of this case
+        return False
+
+
 def _same_case(attrs: dict, case: Case) -> bool:
     try:
         return Case.from_attrs(attrs) == case
@@ -328,14 +339,8 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
         if not resume:
             for stale in (ckpt, failed, record):  # a fresh run: nothing of an earlier one stands
                 stale.unlink(missing_ok=True)
-        elif ckpt.exists():
-            try:
-                with np.load(ckpt, allow_pickle=False) as z:
-                    meta = json.loads(bytes(z["meta"]).decode())
-                if comparable_attrs(meta.get("case") or {}) != json.loads(_canonical(case)):
-                    ckpt.unlink()
-            except Exception:  # noqa: BLE001 - unreadable or foreign checkpoint: start afresh
-                ckpt.unlink(missing_ok=True)
+        elif ckpt.exists() and not checkpoint_of(ckpt, case):
+            ckpt.unlink(missing_ok=True)  # unreadable or of another case: start afresh
         failed.unlink(missing_ok=True)
         _warm_up(case, args)
         history: list = []

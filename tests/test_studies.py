@@ -7,6 +7,7 @@ counts, finite numbers, lost parcels = 0), never specific values.
 """
 
 import csv
+import json
 import math
 import os
 import subprocess
@@ -148,6 +149,33 @@ def test_resume_reports_finished_runs_from_their_records_when_the_datasets_are_g
     assert studies.read_record(rec, case) is None
 
 
+def test_a_checkpoint_from_before_a_later_key_is_kept_by_the_study(tmp_path):
+    """The study keeps a checkpoint (and resumes it) when its stored case lacks a key of
+    config.LATER_KEYS that today's case holds at its earlier value; one of another value of
+    that key, or an unreadable file, is not the case's (the study then starts afresh)."""
+    from eulag.coupling import _json_default
+
+    name, case = studies.scene_cases(False, parcels=30000)[0]
+    ckpt = tmp_path / "c.checkpoint"
+
+    def write(attrs):
+        meta = {"version": 1, "case": json.loads(json.dumps(attrs, default=_json_default))}
+        np.savez(ckpt, meta=np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8))
+        ckpt.with_suffix(".checkpoint.npz").replace(ckpt)
+
+    attrs = case.to_attrs()
+    assert attrs["physics.partner_correlation"] == "particle"
+    write(attrs)
+    assert studies.checkpoint_of(ckpt, case)
+    write({k: v for k, v in attrs.items() if k != "physics.partner_correlation"})  # v0.1.0
+    assert studies.checkpoint_of(ckpt, case)
+    write({**attrs, "physics.partner_correlation": "cell"})
+    assert not studies.checkpoint_of(ckpt, case)
+    assert studies.checkpoint_of(ckpt, case.replace(physics={"partner_correlation": "cell"}))
+    ckpt.write_text("not a checkpoint")
+    assert not studies.checkpoint_of(ckpt, case)
+
+
 # the study cases as the commands in results/README.md run them
 RESULT_CASES = {
     "scenes": lambda: studies.scene_cases(False, parcels=30000),
@@ -170,6 +198,12 @@ def test_committed_records_belong_to_the_shipped_cases(folder):
             found += 1
             assert studies.read_record(rec, case) is not None, name
             assert studies.read_record(rec, case.replace(physics={"partner_correlation": "cell"})) is None
+        failed = rec.with_name(f"{name}.failed.json")
+        if failed.is_file():  # compared as run_one compares it
+            found += 1
+            stored = json.loads(failed.read_text())["case"]
+            assert stored == studies._canonical(case), name
+            assert stored != studies._canonical(case.replace(physics={"partner_correlation": "cell"}))
     assert found >= 4
 
 
