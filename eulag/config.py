@@ -657,6 +657,8 @@ def comparable_attrs(attrs: dict) -> dict:
     """``attrs`` (as :meth:`Case.to_attrs` gives them) without the keys of ``LATER_KEYS``
     that hold their earlier behaviour: the form in which stored cases are compared."""
     return {k: v for k, v in attrs.items() if not (k in LATER_KEYS and v == LATER_KEYS[k])}
+
+
 _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
 _NAME_ALLOWED = ("a string of letters, digits, _ . + - starting with a letter or digit, "
                  "at most 100 characters (used as the output file name)")

@@ -112,7 +112,7 @@ import numpy as np
 
 import particles
 import rans
-from particles.layout import CS_ST
+from particles.layout import CS_ST, NCS
 from collisions import InterparticleOptions, WallOptions
 
 __all__ = ["CouplingLoop", "PassState", "CouplingError", "run", "physics_options", "particle_spec",
@@ -794,8 +794,6 @@ class CouplingLoop:
             self.sources = {k[4:]: data[k] for k in data if k.startswith("src_")}
         self.stats = data.get("stats")
         if self.stats is not None:
-            from particles.layout import NCS
-
             if self.stats.shape[1] == NCS - 1:  # a checkpoint from before the last column, CS_ST
                 st = particles.cell_stokes(self.stats, self.gas, self.spec)
                 self.stats = np.ascontiguousarray(np.column_stack([self.stats, st]))

@@ -75,7 +75,7 @@ def cell_stokes(stats, gas, spec):
     d = spec.diameter
     slip = np.sqrt((gas.ux.ravel() - stats[:, CS_U]) ** 2 + (gas.uy.ravel() - stats[:, CS_U + 1]) ** 2
                    + (gas.uz.ravel() - stats[:, CS_U + 2]) ** 2)
-    re_p = rho * d * slip / mu
+    re_p = rho * d * slip / mu  # drag factor f_d of Schiller & Naumann (PHYSICS.md §1), Newton above 1000
     f_d = np.where(re_p > 1000.0, 0.44 * re_p / 24.0, 1.0 + 0.15 * re_p**0.687)
     tau_p = spec.density * d * d / (18.0 * mu * f_d)
     t_l = C_T * (2.0 / 3.0) * gas.k.ravel() / gas.epsilon.ravel()

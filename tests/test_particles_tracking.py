@@ -245,7 +245,7 @@ def test_partners_about_the_cell_mean_need_one_correlation_per_cell():
         se = math.sqrt(s.var[s._lay.budget + B_PP])
         per_collision[where] = (s.budget["particle_collisions"][0] / (w_m * n), se / (w_m * n), n)
     # R per cell is of the size of R per particle (read from the statistics: with R = 0, i.e. a
-    # wrong or infinite St, the collisions quadruple: 235736 against ~61000 measured)
+    # wrong or infinite St, the collisions quadruple: 235736 against ~61000, scratch runs)
     assert per_collision["cell"][2] == pytest.approx(per_collision["particle"][2], rel=0.1)
     mean, se, _ = per_collision["cell"]
     assert abs(mean) < 3.0 * se, per_collision
