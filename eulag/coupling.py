@@ -358,6 +358,67 @@ class _History:
         return {k: np.asarray(v, dtype=np.float64) for k, v in self.__dict__.items()}
 
 
+def read_checkpoint(path):
+    """(meta, residual history) of the coupling checkpoint at ``path``; CouplingError if it is
+    not a readable eulag checkpoint."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(bytes(z["meta"]).decode())
+            residual = np.asarray(z["hist_residual"], dtype=float) if "hist_residual" in z.files else np.zeros(0)
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
+        raise CouplingError(f"{path}: not a readable eulag checkpoint ({exc})") from None
+    return meta, residual
+
+
+def checkpoint_problem(meta, residual, case):
+    """Why a checkpoint (its ``meta`` and residual history) cannot be resumed as ``case``; None
+    if it can.
+
+    The stored case must be ``case`` (compared as records are: ``config.comparable_attrs``),
+    except ``numerics.max_passes``, which a resumed run may change (e.g. raise, when the early
+    passes ran out) as long as the passes done are those a run started under the new limit
+    would have done: the limit enters only where the loop forces the final passes
+    (pass > max_passes − average_passes) and where it forbids raising α again (fewer than W
+    early passes left; module docstring, "Recovery").  Neither may have acted differently:
+    a limit below the passes done, final passes forced by the old limit, or a pass at which
+    only one of the limits forbade the recovery although its residuals would have allowed it
+    (the last W all below the tolerance; judged conservatively on the whole history) refuse.
+    """
+    if meta.get("version") != CHECKPOINT_VERSION:
+        return f"checkpoint version {meta.get('version')} is not {CHECKPOINT_VERSION} (an older eulag)"
+    stored = dict(meta.get("case") or {})
+    mine = json.loads(json.dumps(case.to_attrs(), default=_json_default))
+    key = "numerics.max_passes"
+    old, new = stored.get(key), mine.get(key)
+    stored[key] = new
+    if _canonical(stored) != _canonical(mine):
+        return "checkpoint of a different case"
+    if old == new or old is None:
+        return None
+    n = case.numerics
+    old, done = int(old), int(meta.get("pass_index", 0))
+    what = f"numerics.max_passes changed from {old} to {new}"
+    if done > new:
+        return f"{what}, but the checkpoint has done {done} passes"
+    if meta.get("phase") == "final" and not meta.get("converged"):
+        return f"{what}, but the checkpoint's final passes were started by the limit {old}"
+    if meta.get("phase") == "final" and done + int(meta.get("final_left", 0)) > new:
+        return f"{what}, fewer than the {done + int(meta.get('final_left', 0))} passes its final passes need"
+    if meta.get("phase") == "early" and done > new - n.average_passes:
+        return f"{what}, which would have started the final passes before pass {done}"
+    w, tol = _STAGNATION_WINDOW, n.coupling_tolerance
+    r = np.asarray(residual, dtype=float)
+    for p in range(1, done + 1):
+        if (old - n.average_passes - p >= w) == (new - n.average_passes - p >= w):
+            continue
+        for end in (p - 1, p):  # the residuals the judgement at pass p saw (before or after it)
+            last = r[max(0, end - w):end]
+            if last.size == w and np.all(last < tol):
+                return (f"{what}, but at pass {p} only one of the limits allowed raising the relaxation "
+                        f"again (residuals {last.min():.3g}-{last.max():.3g} below {tol:g})")
+    return None
+
+
 class CouplingLoop:
     """Iterate the coupled solution of ``case``; see the module docstring.
 
@@ -781,13 +842,14 @@ class CouplingLoop:
             meta = json.loads(bytes(data["meta"]).decode())
         except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
             raise CouplingError(f"{self.checkpoint}: not a readable eulag checkpoint ({exc})") from None
-        if meta.get("version") != CHECKPOINT_VERSION:
-            raise CouplingError(f"{self.checkpoint}: checkpoint version {meta.get('version')} is not "
-                                f"{CHECKPOINT_VERSION}")
-        if _canonical(meta["case"]) != _canonical(json.loads(json.dumps(self.case.to_attrs(),
-                                                                        default=_json_default))):
-            raise CouplingError(f"{self.checkpoint}: checkpoint of a different case; remove it or run "
-                                "without --resume")
+        problem = checkpoint_problem(meta, data.get("hist_residual", np.zeros(0)), self.case)
+        if problem is not None:
+            raise CouplingError(f"{self.checkpoint}: {problem}; remove it or run without --resume")
+        old_limit = meta["case"].get("numerics.max_passes")
+        if old_limit is not None and int(old_limit) != self.case.numerics.max_passes:
+            self._tell(f"resumed after pass {meta['pass_index']} with numerics.max_passes = "
+                       f"{self.case.numerics.max_passes} (the checkpoint's was {old_limit}; the passes "
+                       "done are the same under either)")
         self.gas = self._gas_from(data, "gas")
         self.gas0 = self._gas_from(data, "gas0")
         if "src_momentum" in data:

@@ -18,8 +18,10 @@ the worker count).  Per pass the tracker
 
 The random streams are keyed by (seed, pass, parcel id), so which worker runs a super-batch,
 or how often it is re-run after a worker died (Dask does that by itself), does not change a
-single bit.  On mixed hardware set ``NUMBA_CPU_NAME=generic`` on every worker (and the client)
-so all of them compile the same machine code.
+single bit; nor does submitting them again when a dead worker took the last copy of the
+scattered inputs with it (``DaskTracker._results``).  On mixed hardware set
+``NUMBA_CPU_NAME=generic`` on every worker (and the client) so all of them compile the same
+machine code.
 
 A lost scheduler (or connection) during a pass raises :class:`DaskConnectionError`, a
 :class:`eulag.coupling.CouplingError`: the coupling loop has not touched its state or its
@@ -128,6 +130,13 @@ def _oneline(exc, limit=160):
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
+def _cancelled():
+    import asyncio
+    import concurrent.futures
+
+    return (concurrent.futures.CancelledError, asyncio.CancelledError)
+
+
 def _connection_errors():
     import asyncio
     import concurrent.futures
@@ -152,16 +161,21 @@ class DaskTracker:
     after_submit : callable(list of futures, pass_index) called once the tasks of a pass are
         submitted (monitoring; the tests use it to kill a worker mid-pass).
     workers : addresses of the workers allowed to run the super-batches (None: any).
+    resubmit_rounds : how often a pass submits its unfetched super-batches again after the
+        cluster lost the scattered pass inputs with a dead worker (see :meth:`_results`).
     """
 
-    def __init__(self, client, *, numba_threads=1, retries=0, after_submit=None, workers=None):
+    def __init__(self, client, *, numba_threads=1, retries=0, after_submit=None, workers=None,
+                 resubmit_rounds=3):
         self.client = client
         self.workers = list(workers) if workers is not None else None
         self.numba_threads = numba_threads
         self.retries = retries
         self.after_submit = after_submit
+        self.resubmit_rounds = int(resubmit_rounds)
         self.passes = 0
         self.tasks = 0
+        self.resubmitted = 0  # super-batches submitted again after their inputs were lost
 
     def __call__(self, mesh, gas, spec, physics=particles.PhysicsOptions(), *, parcels, seed=1,
                  pass_index=0, stats=None, settings=particles.TrackSettings()):
@@ -169,19 +183,10 @@ class DaskTracker:
         inputs = prepare_pass(mesh, gas, spec, physics, parcels=parcels, seed=seed,
                               pass_index=pass_index, stats=stats, settings=settings)
         tag = f"eulag-pass{int(pass_index)}-{uuid.uuid4().hex[:12]}"
-        client = self.client
-        futures = []
-        shared = None
+        held = []  # futures (scattered inputs, super-batches) to release when the pass ends
         try:
             try:
-                [shared] = client.scatter([inputs], broadcast=True, hash=False, workers=self.workers)
-                futures = [client.submit(superbatch_task, shared, isb, self.numba_threads,
-                                         key=f"{tag}-superbatch-{isb}", pure=False, retries=self.retries,
-                                         workers=self.workers, allow_other_workers=False)
-                           for isb in range(inputs.superbatches)]
-                if self.after_submit is not None:
-                    self.after_submit(futures, pass_index)
-                totals, squares, cross = fold_superbatches(inputs, self._in_order(futures))
+                totals, squares, cross = fold_superbatches(inputs, self._results(inputs, tag, pass_index, held))
             except _connection_errors() as exc:
                 raise DaskConnectionError(
                     f"pass {pass_index}: lost the Dask scheduler or the connection to it "
@@ -193,26 +198,73 @@ class DaskTracker:
                                         f"again and again ({_oneline(exc)})") from None
                 raise
         finally:
-            for f in futures:
-                if f is not None:
-                    with contextlib.suppress(Exception):
-                        f.release()
-            if shared is not None:
+            for f in held:
                 with contextlib.suppress(Exception):
-                    shared.release()
+                    f.release()
         self.passes += 1
         self.tasks += inputs.superbatches
         return make_sample(mesh, spec, inputs, totals, squares, cross,
                            wall_time=time.perf_counter() - t0)
 
-    @staticmethod
-    def _in_order(futures):
-        """Results in super-batch index order, each released on the cluster once fetched."""
-        for i, f in enumerate(futures):
-            r = f.result()
+    def _submit(self, inputs, tag, indices, held):
+        """Scatter the pass inputs (broadcast) and submit the super-batches ``indices``."""
+        client = self.client
+        [shared] = client.scatter([inputs], broadcast=True, hash=False, workers=self.workers)
+        held.append(shared)
+        futures = {isb: client.submit(superbatch_task, shared, isb, self.numba_threads,
+                                      key=f"{tag}-superbatch-{isb}", pure=False, retries=self.retries,
+                                      workers=self.workers, allow_other_workers=False)
+                   for isb in indices}
+        held.extend(futures.values())
+        return futures
+
+    def _submit_again(self, inputs, tag, indices, held, attempts=10, wait=1.0):
+        """:meth:`_submit` after a lost worker: the scatter may still address the dead worker
+        until the scheduler has removed it, so a failed scatter is tried again (``attempts``
+        times, ``wait`` seconds apart) before the connection error is raised."""
+        for attempt in range(attempts):
+            try:
+                return self._submit(inputs, tag, indices, held)
+            except _connection_errors():
+                if attempt == attempts - 1 or self.client.status != "running":
+                    raise
+                time.sleep(wait)
+
+    def _results(self, inputs, tag, pass_index, held):
+        """Results in super-batch index order, each released on the cluster once fetched.
+
+        A worker that dies while it runs a super-batch is handled by Dask (the task runs again
+        elsewhere).  If it held the last replica of the scattered inputs (Dask's active memory
+        manager drops replicas that no waiting task needs), the super-batches not yet fetched
+        are cancelled ("already forgotten") although the scheduler is fine: they are submitted
+        again, with the inputs scattered anew, up to :attr:`resubmit_rounds` times.  A lost
+        scheduler ("scheduler-connection-lost") is raised to the caller.
+        """
+        futures = self._submit(inputs, tag, range(inputs.superbatches), held)
+        if self.after_submit is not None:
+            self.after_submit(list(futures.values()), pass_index)
+        rounds = 0
+        for isb in range(inputs.superbatches):
+            while True:
+                f = futures[isb]
+                try:
+                    r = f.result()
+                    break
+                except _cancelled() as exc:
+                    reason = getattr(exc, "reason", "unknown")
+                    if (reason == "scheduler-connection-lost" or self.client.status != "running"
+                            or rounds >= self.resubmit_rounds):
+                        raise
+                    rounds += 1
+                    for g in held:
+                        with contextlib.suppress(Exception):
+                            g.release()
+                    held.clear()
+                    futures.update(self._submit_again(inputs, f"{tag}-again{rounds}",
+                                                      range(isb, inputs.superbatches), held))
+                    self.resubmitted += inputs.superbatches - isb
             if f.status != "finished":  # pragma: no cover - defensive
-                raise CouplingError(f"super-batch {i}: task ended as {f.status}")
-            futures[i] = None
+                raise CouplingError(f"pass {pass_index}, super-batch {isb}: task ended as {f.status}")
             f.release()
             yield r
 

@@ -224,12 +224,15 @@ def _canonical(case: Case) -> str:
 
 
 def checkpoint_of(ckpt: Path, case: Case) -> bool:
-    """Whether the coupling checkpoint ``ckpt`` is readable and of ``case`` (its stored case
-    compared as records are, so one from before a key of ``config.LATER_KEYS`` counts)."""
+    """Whether the coupling checkpoint ``ckpt`` is readable and resumable as ``case``
+    (``coupling.checkpoint_problem``: its stored case compared as records are, so one from
+    before a key of ``config.LATER_KEYS`` counts; a changed ``numerics.max_passes`` only where
+    the passes done do not depend on it)."""
+    from eulag import coupling
+
     try:
-        with np.load(ckpt, allow_pickle=False) as z:
-            meta = json.loads(bytes(z["meta"]).decode())
-        return comparable_attrs(meta.get("case") or {}) == json.loads(_canonical(case))
+        meta, residual = coupling.read_checkpoint(ckpt)
+        return coupling.checkpoint_problem(meta, residual, case) is None
     except Exception:  # noqa: BLE001 - unreadable or foreign: not of this case
         return False
 

@@ -122,29 +122,19 @@ def _checkpoint_problem(ckpt, case):
     or there is none).  The same checks as CouplingLoop's resume, on the metadata only."""
     if not ckpt.is_file():
         return None
-    import json
-
-    import numpy as np
-
     from eulag import coupling
 
     try:
-        with np.load(ckpt, allow_pickle=False) as z:
-            meta = json.loads(bytes(z["meta"]).decode())
-    except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
-        return f"{ckpt}: not a readable eulag checkpoint ({exc}); remove it to start the case afresh"
-    if meta.get("version") != coupling.CHECKPOINT_VERSION:
-        return (f"{ckpt}: checkpoint version {meta.get('version')} is not {coupling.CHECKPOINT_VERSION} "
-                "(an older eulag); remove it to start the case afresh")
+        meta, residual = coupling.read_checkpoint(ckpt)
+    except coupling.CouplingError as exc:
+        return f"{exc}; remove it to start the case afresh"
     try:
-        mine = json.loads(json.dumps(case.to_attrs(), default=coupling._json_default))
-        same = coupling._canonical(meta["case"]) == coupling._canonical(mine)
+        problem = coupling.checkpoint_problem(meta, residual, case)
     except Exception:  # noqa: BLE001 - leave the verdict to the run itself
         return None
-    if not same:
-        return (f"{ckpt}: checkpoint of a different case (another case file or --parcels); remove it "
-                "to start the case afresh")
-    return None
+    if problem == "checkpoint of a different case":
+        problem += " (another case file or --parcels)"
+    return None if problem is None else f"{ckpt}: {problem}; remove it to start the case afresh"
 
 
 def _ended_unconverged(out):

@@ -245,12 +245,91 @@ def test_worker_killed_mid_pass_same_result(client, local_ds):
     ds = run(small_case(**SPLIT), tracker=tracker)
     assert killed, "no worker was killed"
     data_vars_equal(local_ds, ds)
-    # the killed worker's super-batches were computed again (went to "processing" twice)
+    # the killed worker's super-batches were computed again: by Dask (they went to "processing"
+    # twice) or, if the scattered inputs died with the worker, submitted again by the tracker
     story = [t[1:] if t[0] == "scheduler" else t for t in client.story(*killed["keys"])]
     again = [k for k in killed["keys"] if sum(1 for t in story if t[0] == k and t[2] == "processing") >= 2]
-    assert again, story
+    assert again or tracker.resubmitted, story
     client.wait_for_workers(2, timeout=60)  # the nanny restarts the killed worker
     assert killed["pid"] not in _pids(client).values()
+
+
+def _drop_replica(dask_scheduler, key, worker):
+    """Scheduler side: forget ``worker``'s replica of ``key`` (what the active memory manager
+    does to replicas no waiting task needs)."""
+    dask_scheduler.request_remove_replicas(worker, [key], stimulus_id="eulag-test")
+
+
+def _holders(dask_scheduler, key):
+    return sorted(ws.address for ws in dask_scheduler.tasks[key].who_has)
+
+
+def _dependencies(dask_scheduler, keys):
+    """The dependencies of ``keys`` once the scheduler knows all of them (None before)."""
+    if any(k not in dask_scheduler.tasks for k in keys):
+        return None
+    return sorted({d.key for k in keys for d in dask_scheduler.tasks[k].dependencies})
+
+
+def test_worker_killed_with_the_last_copy_of_the_inputs_same_result(client, local_ds):
+    """The worker killed mid-pass held the only replica of the scattered pass inputs: the
+    unfetched super-batches are cancelled ("already forgotten"), the tracker submits them again
+    with the inputs scattered anew, and the dataset is the same (the CI failure of session 16:
+    the active memory manager had dropped the other replica)."""
+    killed = {}
+
+    def kill_holder(futures, pass_index):
+        # the moment of the CI failure: one worker still runs a super-batch, the other has
+        # none left (so the active memory manager may drop its replica of the inputs)
+        if pass_index < 3 or killed:
+            return
+        pids = _pids(client)
+        ours = {f.key for f in futures}
+        deadline = time.monotonic() + 30
+        while (deps := client.run_on_scheduler(_dependencies, keys=sorted(ours))) is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        [shared] = deps
+        while time.monotonic() < deadline and not all(f.done() for f in futures):
+            running = {w: ours & set(keys) for w, keys in client.processing().items()}
+            busy = [w for w, keys in running.items() if keys]
+            if len(busy) == 1 and len(running) == 2:
+                [victim] = busy
+                [idle] = [w for w in running if w != victim]
+                if idle in client.run_on_scheduler(_holders, key=shared):
+                    client.run_on_scheduler(_drop_replica, key=shared, worker=idle)
+                os.kill(pids[victim], signal.SIGKILL)
+                killed.update(worker=victim, pid=pids[victim], pass_index=pass_index)
+                return
+            time.sleep(0.001)
+
+    tracker = DaskTracker(client, after_submit=kill_holder)
+    ds = run(small_case(**SPLIT), tracker=tracker)
+    assert killed, "no worker was killed"
+    assert tracker.resubmitted > 0
+    data_vars_equal(local_ds, ds)
+    client.wait_for_workers(2, timeout=60)
+
+
+def test_resubmit_rounds_bounded(client):
+    """Inputs lost again and again: after ``resubmit_rounds`` the pass stops with the Dask
+    connection error (the scheduler is fine, so the message names the cancellation)."""
+    loop = CouplingLoop(small_case(**SPLIT))
+    loop.step()
+    args = (loop.mesh, loop.gas, loop.spec, loop.physics)
+    kw = dict(parcels=1000, seed=3, pass_index=7, stats=loop.stats, settings=loop.settings)
+
+    class Cancelling(DaskTracker):
+        def _submit(self, inputs, tag, indices, held):
+            futures = super()._submit(inputs, tag, indices, held)
+            client.cancel(list(futures.values()), reason="eulag-test")
+            return futures
+
+    tracker = Cancelling(client, resubmit_rounds=2)
+    with pytest.raises(DaskConnectionError, match="cancelled"):
+        tracker(*args, **kw)
+    _, _, supers = particles.batch_plan(1000, loop.settings)
+    assert tracker.resubmitted == 2 * len(supers) and tracker.passes == 0
 
 
 def test_lost_scheduler_clear_error_checkpoint_intact(tmp_path, local_ds):
