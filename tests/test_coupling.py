@@ -1,5 +1,6 @@
 """The coupling loop: bookkeeping, history, checkpoint/resume equality, physics switches."""
 
+import json
 import math
 
 import numpy as np
@@ -193,6 +194,55 @@ def test_checkpoint_of_another_case_is_refused(tmp_path):
     loop.step()
     with pytest.raises(RuntimeError, match="different case"):
         CouplingLoop(small_case(**{"numerics.seed": 4}), checkpoint=ckpt, resume=True)
+
+
+def test_resume_with_a_raised_pass_limit_gives_the_uninterrupted_dataset(tmp_path, uninterrupted):
+    """Checkpointed under numerics.max_passes = 4 after pass 2 (still early), resumed under the
+    limit 6 of the uninterrupted run: the same dataset (the old limit never acted)."""
+    ckpt = tmp_path / "out.nc.checkpoint"
+    loop = CouplingLoop(small_case(**{"numerics.max_passes": 4}), checkpoint=ckpt)
+    loop.step()
+    loop.step()
+    assert loop.phase == "early"
+    del loop
+    told = []
+    resumed = run(small_case(), tmp_path / "out.nc", resume=True, notify=told.append)
+    assert any("max_passes = 6" in t and "was 4" in t for t in told), told
+    data_vars_equal(uninterrupted, resumed)
+
+
+def test_pass_limit_changes_that_would_have_acted_are_refused(tmp_path):
+    from eulag import coupling
+
+    ckpt = tmp_path / "out.nc.checkpoint"
+    case = small_case(**{"numerics.max_passes": 4})
+    loop = CouplingLoop(case, checkpoint=ckpt)
+    loop.step()
+    loop.step()
+    meta, residual = coupling.read_checkpoint(ckpt)
+    assert coupling.checkpoint_problem(meta, residual, case) is None
+    assert coupling.checkpoint_problem(meta, residual, small_case(**{"numerics.max_passes": 9})) is None
+    # pass 2 done, average_passes 2: a limit of 3 would have made pass 2 a final pass
+    assert "final passes before pass 2" in coupling.checkpoint_problem(
+        meta, residual, small_case(**{"numerics.max_passes": 3}))
+    assert "done 7 passes" in coupling.checkpoint_problem(dict(meta, pass_index=7), residual, small_case())
+    forced = dict(meta, phase="final", converged=False)
+    assert "started by the limit 4" in coupling.checkpoint_problem(forced, residual, small_case())
+    # the recovery gate: limit 40 -> 80 (average 2, W = 4) differs at passes 35-38; residuals
+    # below the tolerance before them refuse, above it do not
+    w = coupling._STAGNATION_WINDOW
+    old = small_case(**{"numerics.max_passes": 40})
+    new = small_case(**{"numerics.max_passes": 80})
+    tol = new.numerics.coupling_tolerance
+    later = dict(meta, pass_index=36, case=json.loads(json.dumps(old.to_attrs(), default=coupling._json_default)))
+    above = np.full(36, 1.2 * tol)
+    assert coupling.checkpoint_problem(later, above, new) is None
+    below = above.copy()
+    below[34 - w:34] = 0.5 * tol  # passes 31-34: what the judgement at pass 35 saw
+    assert "raising the relaxation" in coupling.checkpoint_problem(later, below, new)
+    assert "different case" in coupling.checkpoint_problem(meta, residual, small_case(**{"numerics.seed": 4}))
+    with pytest.raises(RuntimeError, match="final passes before pass 2"):
+        CouplingLoop(small_case(**{"numerics.max_passes": 3}), checkpoint=ckpt, resume=True)
 
 
 def test_one_way_coupling_leaves_the_gas_alone():
