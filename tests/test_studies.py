@@ -153,13 +153,13 @@ def test_a_checkpoint_from_before_a_later_key_is_kept_by_the_study(tmp_path):
     """The study keeps a checkpoint (and resumes it) when its stored case lacks a key of
     config.LATER_KEYS that today's case holds at its earlier value; one of another value of
     that key, or an unreadable file, is not the case's (the study then starts afresh)."""
-    from eulag.coupling import _json_default
+    from eulag.coupling import CHECKPOINT_VERSION, _json_default
 
     name, case = studies.scene_cases(False, parcels=30000)[0]
     ckpt = tmp_path / "c.checkpoint"
 
-    def write(attrs):
-        meta = {"version": 1, "case": json.loads(json.dumps(attrs, default=_json_default))}
+    def write(attrs, version=CHECKPOINT_VERSION):
+        meta = {"version": version, "case": json.loads(json.dumps(attrs, default=_json_default))}
         np.savez(ckpt, meta=np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8))
         ckpt.with_suffix(".checkpoint.npz").replace(ckpt)
 
@@ -172,6 +172,8 @@ def test_a_checkpoint_from_before_a_later_key_is_kept_by_the_study(tmp_path):
     write({**attrs, "physics.partner_correlation": "cell"})
     assert not studies.checkpoint_of(ckpt, case)
     assert studies.checkpoint_of(ckpt, case.replace(physics={"partner_correlation": "cell"}))
+    write(attrs, version=CHECKPOINT_VERSION - 1)  # an older layout: the loop could not resume it
+    assert not studies.checkpoint_of(ckpt, case)
     ckpt.write_text("not a checkpoint")
     assert not studies.checkpoint_of(ckpt, case)
 
