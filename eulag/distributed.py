@@ -139,14 +139,12 @@ def _cancelled():
 
 def _connection_errors():
     import asyncio
-    import concurrent.futures
 
     from distributed.comm.core import CommClosedError
 
     # a lost scheduler cancels every future of the client (FutureCancelledError, a
     # concurrent.futures.CancelledError, reason "scheduler-connection-lost")
-    return (OSError, CommClosedError, concurrent.futures.CancelledError, asyncio.CancelledError,
-            asyncio.TimeoutError, TimeoutError)
+    return (OSError, CommClosedError, *_cancelled(), asyncio.TimeoutError, TimeoutError)
 
 
 class DaskTracker:
