@@ -486,9 +486,10 @@ def test_only_a_steady_contraction_counts_as_still_converging():
 def test_a_steady_contraction_after_a_bump_counts_as_still_converging():
     """Scene g's station at x = 0.825 m (session 17): the change rose to 0.16 at iteration 142
     of 200 and then fell by ~0.8, later 0.92, per iteration to 1.3e-5.  The largest change of
-    the last 50 (6.5e-2) over that of the 50 before (0.158) projects 626 more iterations
-    (> 600 left), yet at the rate of the last ones 20-30 suffice: the straight fall of
-    log(change) says it is still converging."""
+    the last 50 over that of the 50 before (there 6.5e-2 and 0.158: 626 more iterations; in
+    this synthetic profile 7.4e-2 and 0.158: 743) projects more than the 600 left, yet at the
+    rate of the last ones 20-30 suffice: the straight fall of log(change) says it is still
+    converging."""
     from rans.solver import _still_converging
 
     n = np.arange(200)
