@@ -913,7 +913,7 @@ def _still_converging(changes, chunk, tol, left):
     if np.isfinite(before) and now < before:
         if math.log(tol / now) / (math.log(now / before) / chunk) <= left:
             return True
-    if last[-1] <= tol or chunk < 8:
+    if last[-1] <= tol or chunk < 8:  # both fits need a few points (the later half >= 4)
         return False
     y = np.log(last)
     n = np.arange(chunk, dtype=float)
