@@ -209,6 +209,20 @@ def test_committed_records_belong_to_the_shipped_cases(folder):
     assert found >= 4
 
 
+@pytest.mark.parametrize("folder", sorted(RESULT_CASES))
+def test_committed_checkpoints_resume_as_the_shipped_cases(folder):
+    """A run too long for one session is committed with its checkpoint (results/HISTORY.md), so
+    that the command in results/README.md continues it on a fresh machine: each committed
+    ``<run>.nc.checkpoint`` must be resumable as its shipped case (else --resume would delete
+    it and start afresh), and must not sit beside a record of that case (a finished run)."""
+    cases = dict(RESULT_CASES[folder]())
+    for ckpt in sorted((ROOT / "results" / folder).glob("*.nc.checkpoint")):
+        name = ckpt.name[: -len(".nc.checkpoint")]
+        assert name in cases, ckpt
+        assert studies.checkpoint_of(ckpt, cases[name]), ckpt
+        assert studies.read_record(ckpt.with_name(f"{name}.record.json"), cases[name]) is None, ckpt
+
+
 def test_resume_continues_an_interrupted_run_from_its_checkpoint(tmp_path, capsys):
     from eulag.coupling import CouplingLoop
 
