@@ -571,3 +571,42 @@ def test_drag_source_without_its_reference_velocity_is_rejected():
     with pytest.raises(ValueError, match="negative"):
         solve(m, GAS, 10.0, sources=Sources(s.momentum, s.k, s.epsilon, drag=-np.ones(m.shape),
                                             velocity_reference=np.zeros((3,) + m.shape)))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_pinned_continuity_block_is_the_lil_one_to_the_bit(seed):
+    """rans.solver._pin_pressure_level (the coupled cross-flow step's continuity block with the
+    pressure level pinned) gives the matrix the LIL route gave, value for value and index for
+    index (SuperLU then factors the same matrix: a station's solution does not change), also
+    with explicit zeros, duplicates and a pinned cell that has no diagonal entry."""
+    import scipy.sparse as sp
+
+    from rans.solver import _pin_pressure_level
+
+    rng = np.random.default_rng(seed)
+    n = 60
+    # raw CSR rows with unsorted columns, duplicates and explicit zeros (as a product may hold)
+    indptr, indices, data = [0], [], []
+    for i in range(n):
+        cols = list(rng.choice(n, size=int(rng.integers(2, 9)), replace=False)) + [i]
+        cols += list(rng.choice(cols, size=2))  # duplicates
+        rng.shuffle(cols)
+        vals = rng.normal(size=len(cols))
+        vals[rng.random(len(cols)) < 0.1] = 0.0
+        indices += [int(c) for c in cols]
+        data += list(vals)
+        indptr.append(len(indices))
+    C = sp.csr_matrix((np.array(data), np.array(indices), np.array(indptr)), shape=(n, n))
+    w = int(rng.integers(0, n))
+    if seed % 2:  # no (w, w) entry
+        C = C.tolil()
+        C[w, w] = 0.0
+        C = C.tocsr()
+        C.eliminate_zeros()
+    old = C.tolil()
+    old[w, w] += abs(old.diagonal()).max() * 1e3
+    old = old.tocsr()
+    new = _pin_pressure_level(C, w)
+    assert np.array_equal(new.indptr, old.indptr)
+    assert np.array_equal(new.indices, old.indices)
+    assert np.array_equal(new.data, old.data)
