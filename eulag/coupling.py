@@ -67,7 +67,8 @@ pipe, halved to 0.075 when their residual sat just above the tolerance, reached 
 of pure noise but still had 2.3 % and 1.3 % of −dp/dx to come after 40 passes (stability runs
 at 707bbfd).  Re-run with the rule (abd53b2), the pipe converged in 35 passes; η = 10 did not:
 the residual is not independent of α (the pass's sources respond to the noise the relaxed
-sources put into the gas), and at the recovered 0.15 it rose to ~2 again (results/README.md).
+sources put into the gas), and at the recovered 0.15 it rose to ~2 again (it converged later
+with the linearised drag; results/HISTORY.md).
 
 Convergence ("no longer changing beyond noise"): per cell the change of the relaxed sources,
 ΔS = α (S_pass − S_used_prev), is compared with its own statistical noise

@@ -13,14 +13,16 @@ stated in it) and its figures (PNG). Nothing in these files is edited by hand.
 * ``--resume``: a run whose dataset already exists (and holds the same case) is not run
   again, an interrupted run continues from its checkpoint (``<run>.nc.checkpoint``), and a
   run that failed before is reported from its ``<run>.failed.json`` record. Without
-  ``--resume`` every run starts afresh.
+  ``--resume`` every run starts afresh (and deletes the checkpoint it finds).
 * Run records: what a study takes from a finished run's dataset (its table row, the data of
   the study's figures) is also written to ``<run>.record.json`` beside it. The datasets are
   too large to commit (70-90 MB); the records are committed with the tables, so that
   ``--resume`` on another machine reports a finished run from its record when its dataset
   is not there, instead of running it again (the record names the commit that ran it, where
   the dataset recorded one). A record is trusted by its case and ``RECORD_VERSION``: a change
-  to what a study extracts from a dataset must bump the version.
+  to what a study extracts from a dataset must bump the version. A run longer than a
+  session is committed with its checkpoint (``<run>.nc.checkpoint``, results/README.md), which
+  ``--resume`` continues on any machine; the study deletes it when the run has finished.
 * ``--parcels N``: parcels per final pass of every run (a lighter full-mode study; not in
   error-runtime, where the parcel count is an axis). ``--only``: a subset of scenes / cases.
 * ``--quick``: every run on a tiny grid with a few hundred parcels and two passes, so that
