@@ -23,9 +23,10 @@ stated in it) and its figures (PNG). Nothing in these files is edited by hand.
   to what a study extracts from a dataset must bump the version. A run longer than a
   session is committed with its checkpoint (``<run>.nc.checkpoint``, results/README.md), which
   ``--resume`` continues on any machine; the study deletes it when the run has finished.
-* ``--report``: run nothing; write the table from what the output folder holds (datasets,
-  records, failed records) and give a run that has only a checkpoint as "running" with how
-  far it got (passes, residual, relaxation, time so far), one with nothing as "not run".
+* ``--report``: run nothing; write the table from what an existing output folder holds
+  (datasets, records, failed records; a dataset's record and figures are written again from
+  it) and give a run that has only a checkpoint as "unfinished" with how far it got (passes,
+  residual, relaxation, time so far), one with nothing as "not run" (exit status 0 for both).
 * ``--parcels N``: parcels per final pass of every run (a lighter full-mode study; not in
   error-runtime, where the parcel count is an axis). ``--only``: a subset of scenes / cases.
 * ``--quick``: every run on a tiny grid with a few hundred parcels and two passes, so that
@@ -164,6 +165,8 @@ def _output_dir(args) -> Path:
     out = Path(args.output_dir) if args.output_dir else Path("results") / args.study_name
     if out.exists() and not out.is_dir():
         raise _BadInput(f"-o {out}: exists and is not a directory; allowed: a directory")
+    if getattr(args, "report", False) and not out.is_dir():
+        raise _BadInput(f"-o {out}: no such directory; --report reads the runs of an existing output folder")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -197,7 +200,9 @@ def _log(args, text: str) -> None:
 class RunRecord:
     """What a study keeps of one run (the dataset itself is not kept in memory).
 
-    status: "converged" | "not converged" | "failed" | "rejected" | "error";
+    status: "converged" | "not converged" | "failed" | "rejected" | "error", and with --report
+    "unfinished" (a checkpoint only) | "not run" (nothing of the run is there; neither counts as
+    a failure of the study: exit status 0);
     message: the diagnosis ("" for a converged run); time: wall time of the run [s]
     (compilation excluded, see the module docstring); passes, residual, relaxation: the
     last pass's; metrics: what the study extracted from the dataset.
@@ -327,7 +332,7 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             ds = opened
             reused = True
             _log(args, f"  {label}: {out} exists (same case), not run again")
-    if ds is None and resume and not out.is_file():
+    if ds is None and resume and (report or not out.is_file()):  # (--report: also beside an unusable dataset)
         kept = read_record(record, case)
         if kept is not None:
             _log(args, f"  {label}: reported from its record {record} (its dataset is not here; run "
@@ -405,13 +410,16 @@ RECORD_VERSION = 1
 
 
 def _unfinished_record(args, name: str, case: Case, out: Path, ckpt: Path, label: str) -> RunRecord:
-    """--report: the row of a run with neither dataset, record nor failed record here — "running"
-    with the state of its checkpoint (passes done, the last residual and α, the time so far),
-    or "not run"."""
+    """--report: the row of a run with neither dataset, record nor failed record here —
+    "unfinished" with the state of its checkpoint (passes done, the last residual and α, the
+    time so far), or "not run"."""
     from eulag import coupling
 
-    if ckpt.exists() and checkpoint_of(ckpt, case):
-        meta, residual = coupling.read_checkpoint(ckpt)
+    try:  # read once: a run going on beside the report may finish and delete it
+        meta, residual = coupling.read_checkpoint(ckpt) if ckpt.exists() else (None, None)
+    except coupling.CouplingError:
+        meta = None
+    if meta is not None and coupling.checkpoint_problem(meta, residual, case) is None:
         done = int(meta.get("pass_index", 0))
         t = meta.get("timings", {})
         spent = sum(float(t.get(k, 0.0)) for k in ("gas_solve", "lagrangian", "checkpoint"))
@@ -419,8 +427,8 @@ def _unfinished_record(args, name: str, case: Case, out: Path, ckpt: Path, label
         alpha = float(meta.get("alpha", math.nan))
         msg = (f"checkpoint after pass {done} of at most {case.numerics.max_passes} ({meta.get('phase')} "
                f"passes, residual {res:.3g}, relaxation {alpha:g}); --resume continues it")
-        _log(args, f"  {label}: running: {msg}")
-        return RunRecord(name, case, out, "running", msg, spent, done, res, alpha)
+        _log(args, f"  {label}: unfinished: {msg}")
+        return RunRecord(name, case, out, "unfinished", msg, spent, done, res, alpha)
     _log(args, f"  {label}: not run (no dataset, record or checkpoint of this case here)")
     return RunRecord(name, case, out, "not run", "no dataset, record or checkpoint of this case here")
 

@@ -546,7 +546,8 @@ class _StationSolver:
 def _pin_pressure_level(C, w):
     """C (CSR, canonical: duplicates summed, indices sorted) with 10³ × its largest diagonal
     magnitude added at (w, w): the continuity block with the pressure level pinned in cell w.
-    The same matrix, to the bit, as through LIL (``tolil``, ``+=``, ``tocsr``), 25× faster."""
+    The same pattern and values as the former ``-(X).tolil()``, ``+=``, ``tocsr()`` (compared
+    on 300 coupled steps of scene h: equal to the bit), 25× faster."""
     C = C.tocsr(copy=True)
     C.sum_duplicates()
     C.sort_indices()

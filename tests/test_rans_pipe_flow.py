@@ -574,9 +574,9 @@ def test_drag_source_without_its_reference_velocity_is_rejected():
 
 
 @pytest.mark.parametrize("seed", range(6))
-def test_pinned_continuity_block_is_the_lil_one_to_the_bit(seed):
+def test_pinned_continuity_block_is_the_former_one_to_the_bit(seed):
     """rans.solver._pin_pressure_level (the coupled cross-flow step's continuity block with the
-    pressure level pinned) gives the matrix the LIL route gave, value for value and index for
+    pressure level pinned) gives the matrix the former route gave, value for value and index for
     index (SuperLU then factors the same matrix: a station's solution does not change), also
     with explicit zeros, duplicates and a pinned cell that has no diagonal entry."""
     import scipy.sparse as sp
@@ -603,10 +603,10 @@ def test_pinned_continuity_block_is_the_lil_one_to_the_bit(seed):
         C[w, w] = 0.0
         C = C.tocsr()
         C.eliminate_zeros()
-    old = C.tolil()
+    old = -C.tolil()  # the former route, -(X).tolil() (a CSR matrix), then +=
     old[w, w] += abs(old.diagonal()).max() * 1e3
     old = old.tocsr()
-    new = _pin_pressure_level(C, w)
+    new = _pin_pressure_level(-C, w)
     assert np.array_equal(new.indptr, old.indptr)
     assert np.array_equal(new.indices, old.indices)
     assert np.array_equal(new.data, old.data)

@@ -289,7 +289,7 @@ def test_scenes_quick_subset(tmp_path):
 
 def test_report_runs_nothing_and_says_how_far_an_unfinished_run_got(tmp_path):
     """--report writes the table from what the folder holds: a run with only a checkpoint is
-    "running" with its passes, residual and relaxation (read from the checkpoint), one with
+    "unfinished" with its passes, residual and relaxation (read from the checkpoint), one with
     nothing "not run"; no run starts, the checkpoint stays, and the exit status is 0."""
     from eulag.coupling import CouplingLoop
 
@@ -302,12 +302,14 @@ def test_report_runs_nothing_and_says_how_far_an_unfinished_run_got(tmp_path):
     assert study("scenes", "--quick", "--quiet", "--report", "--only", "a,c", "-o", tmp_path) == 0
     table = check_report(tmp_path, "scenes", 2)
     a, c = table
-    assert a["converged"].startswith(f"running: checkpoint after pass 1 of at most {case.numerics.max_passes}")
+    assert a["converged"].startswith(f"unfinished: checkpoint after pass 1 of at most {case.numerics.max_passes}")
     assert int(a["passes"]) == 1 and number(a["time_s"]) > 0
     assert c["converged"].startswith("not run")
     assert ckpt.read_bytes() == before
     assert "--report`" in (tmp_path / "README.md").read_text()
     assert not list(tmp_path.glob("*.nc")) and not list(tmp_path.glob("*.record.json"))
+    assert study("scenes", "--quick", "--quiet", "--report", "-o", tmp_path / "typo") == 2
+    assert not (tmp_path / "typo").exists()
 
 
 @pytest.mark.slow
