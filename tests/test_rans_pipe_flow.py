@@ -573,6 +573,7 @@ def test_drag_source_without_its_reference_velocity_is_rejected():
                                             velocity_reference=np.zeros((3,) + m.shape)))
 
 
+@pytest.mark.filterwarnings("ignore::scipy.sparse.SparseEfficiencyWarning")  # the former route, where (w, w) is new
 @pytest.mark.parametrize("seed", range(6))
 def test_pinned_continuity_block_is_the_former_one_to_the_bit(seed):
     """rans.solver._pin_pressure_level (the coupled cross-flow step's continuity block with the
