@@ -236,18 +236,25 @@ def _canonical(case: Case) -> str:
     return json.dumps(comparable_attrs(case.to_attrs()), sort_keys=True, default=default)
 
 
-def checkpoint_of(ckpt: Path, case: Case) -> bool:
-    """Whether the coupling checkpoint ``ckpt`` is readable and resumable as ``case``
-    (``coupling.checkpoint_problem``: its stored case compared as records are, so one from
-    before a key of ``config.LATER_KEYS`` counts; a changed ``numerics.max_passes`` only where
-    the passes done do not depend on it)."""
+def resumable_checkpoint(ckpt: Path, case: Case):
+    """(meta, residual history) of the coupling checkpoint ``ckpt`` when it is readable and
+    resumable as ``case`` (``coupling.checkpoint_problem``: its stored case compared as records
+    are, so one from before a key of ``config.LATER_KEYS`` counts; a changed
+    ``numerics.max_passes`` only where the passes done do not depend on it), else None.  The
+    file is read once (a run beside the caller may finish and delete it)."""
     from eulag import coupling
 
     try:
         meta, residual = coupling.read_checkpoint(ckpt)
-        return coupling.checkpoint_problem(meta, residual, case) is None
-    except Exception:  # noqa: BLE001 - unreadable or foreign: not of this case
-        return False
+        return (meta, residual) if coupling.checkpoint_problem(meta, residual, case) is None else None
+    except Exception:  # noqa: BLE001 - absent, unreadable or foreign: not of this case
+        return None
+
+
+def checkpoint_of(ckpt: Path, case: Case) -> bool:
+    """Whether the coupling checkpoint ``ckpt`` is readable and resumable as ``case``
+    (``resumable_checkpoint``)."""
+    return resumable_checkpoint(ckpt, case) is not None
 
 
 def _same_case(attrs: dict, case: Case) -> bool:
@@ -413,13 +420,9 @@ def _unfinished_record(args, name: str, case: Case, out: Path, ckpt: Path, label
     """--report: the row of a run with neither dataset, record nor failed record here —
     "unfinished" with the state of its checkpoint (passes done, the last residual and α, the
     time so far), or "not run"."""
-    from eulag import coupling
-
-    try:  # read once: a run going on beside the report may finish and delete it
-        meta, residual = coupling.read_checkpoint(ckpt) if ckpt.exists() else (None, None)
-    except coupling.CouplingError:
-        meta = None
-    if meta is not None and coupling.checkpoint_problem(meta, residual, case) is None:
+    found = resumable_checkpoint(ckpt, case)
+    if found is not None:
+        meta, residual = found
         done = int(meta.get("pass_index", 0))
         t = meta.get("timings", {})
         spent = sum(float(t.get(k, 0.0)) for k in ("gas_solve", "lagrangian", "checkpoint"))
