@@ -201,3 +201,26 @@ def test_write_dataset_is_atomic(tmp_path, monkeypatch):
         write_dataset(xr.Dataset({"a": ("x", np.arange(5.0))}), target)
     assert target.read_bytes() == before  # the old file is untouched
     assert [p.name for p in tmp_path.iterdir()] == ["out.nc"]  # no temporary left behind
+
+
+def test_commit_names_code_changes_not_result_changes(tmp_path):
+    """A dataset's ``eulag_commit`` says "(with uncommitted changes)" when code differs from the
+    commit, not when a study has just rewritten its own committed table under results/."""
+    import eulag
+
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-c", "commit.gpgsign=false"]
+    assert eulag._commit_of(tmp_path) == "unknown (not a git checkout)"
+    (tmp_path / "eulag").mkdir()
+    (tmp_path / "results").mkdir()
+    (tmp_path / "eulag" / "m.py").write_text("x = 1\n")
+    (tmp_path / "results" / "table.md").write_text("| a |\n")
+    subprocess.run([*git, "init", "-q"], cwd=tmp_path, check=True)
+    subprocess.run([*git, "add", "."], cwd=tmp_path, check=True)
+    subprocess.run([*git, "commit", "-q", "-m", "c"], cwd=tmp_path, check=True)
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=tmp_path, capture_output=True,
+                          text=True, check=True).stdout.strip()
+    assert eulag._commit_of(tmp_path) == head
+    (tmp_path / "results" / "table.md").write_text("| b |\n")
+    assert eulag._commit_of(tmp_path) == head
+    (tmp_path / "eulag" / "m.py").write_text("x = 2\n")
+    assert eulag._commit_of(tmp_path) == f"{head} (with uncommitted changes)"
