@@ -41,7 +41,7 @@ as the particles follow the gas): with β_used = θ β the contraction per pass 
 contract by (1 − α)/(1 + α g β) at θ = α, and the explicit θ = 0 diverges once α (1 + g β) > 2;
 long modes, where the particles follow the gas (β_eff ≪ β), contract by 1 − α β_eff/θβ as
 g β grows, so the fully relaxed β (θ = 1) holds them near 1 (scene f at θ = 1: −dp/dx rising
-by ~3.5 Pa/m per pass from 24 Pa/m, below its single-phase 48).  Where the iteration has
+by ~3 Pa/m per pass from 24.4 Pa/m, below its single-phase 48).  Where the iteration has
 converged, U = U_ref and the applied source is the relaxed one: the fixed point is that of the
 explicit source.  ``LINEARISED_DRAG = False`` restores the explicit source.
 

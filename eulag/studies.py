@@ -52,7 +52,7 @@ import os
 import platform
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Callable
 
@@ -825,12 +825,30 @@ def _run_cells(rec: RunRecord) -> dict:
             "commit": rec.metrics.get("commit")}
 
 
+def _numerics_differences(cases: list[Case]) -> str:
+    """Which numerics of the other runs differ from the first run's (names and values)."""
+    first = cases[0].numerics
+    names = [f.name for f in fields(first) if f.init and not f.name.startswith("_")]
+    runs = []
+    for c in cases[1:]:
+        d = [f"{k} {_setting_value(getattr(c.numerics, k))}" for k in names
+             if getattr(c.numerics, k) != getattr(first, k)]
+        if d:
+            runs.append(f"{c.name} {', '.join(d)}")
+    return "the others' are the same" if not runs else "differing in the others: " + "; ".join(runs)
+
+
+def _setting_value(v) -> str:
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
 def _settings_text(cases: list[Case], quick: bool) -> str:
     if not cases:
         return "no case ran"
     c = cases[0]
     n = c.numerics
-    text = (f"Numerics of the runs (first run shown; the table states what differs): "
+    which = "the run" if len(cases) == 1 else f"the runs (the first run's; {_numerics_differences(cases)})"
+    text = (f"Numerics of {which}: "
             f"{n.axial_cells} axial x {n.radial_cells} radial x {n.azimuthal_cells} azimuthal cells, "
             f"{n.parcels} parcels per pass in the final passes ({n.parcels_start} earlier), "
             f"{n.average_passes} final passes averaged, at most {n.max_passes} passes, relaxation "
@@ -1439,7 +1457,8 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
                  columns=columns, rows=rows, figures=[fig],
                  sections=[("Pareto front (total error against run time)", "\n".join(pareto_lines) or
                             "no run finished with an error estimate")],
-                 t_start=t_start, settings=_settings_text([_setting_case(case, runs[0], args.quick)], args.quick),
+                 t_start=t_start,
+                 settings=_settings_text([_setting_case(case, r, args.quick) for r in settings], args.quick),
                  records=list(records.values()))
     return _finish(args, outdir, list(records.values()), allowed_failures=False)
 

@@ -267,6 +267,19 @@ def test_scene_case_files_match_the_issue_table():
                             numerics={"max_passes": base.numerics.max_passes}) == base
 
 
+def test_settings_name_the_numerics_that_differ_from_the_first_run():
+    """The settings paragraph shows the first run's numerics and names what differs in the others
+    (g's and h's pass limits are in no column of the scenes table)."""
+    a, g, h = (Case.from_toml(CASES_DIR / "scenes" / f"scene_{s}.toml") for s in "agh")
+    text = studies._settings_text([a, g, h], False)
+    assert "at most 40 passes" in text
+    assert "differing in the others: scene_g max_passes 80; scene_h max_passes 160" in text
+    assert "the others' are the same" in studies._settings_text([a, a.replace(name="x")], False)
+    assert studies._settings_text([a], False).startswith("Numerics of the run: 400 axial")
+    fine = a.replace(name="fine", numerics={"axial_cells": 800, "step_factor": 0.25})
+    assert "fine axial_cells 800, step_factor 0.25" in studies._settings_text([a, fine], False)
+
+
 def check_scene_rows(table, names):
     assert [r["scene"] for r in table] == names
     for r in table:
