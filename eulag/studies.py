@@ -1,9 +1,11 @@
 """The studies of issue 6 (DESIGN.md, "Command line"): ``eulag study NAME [--quick]``.
 
-    eulag study tsuji-morikawa            [--quick] [-o DIR] [--resume] [--quiet] [--parcels N]
-    eulag study scenes                    [--quick] [-o DIR] [--resume] [--quiet] [--parcels N] [--only a,c]
-    eulag study error-runtime CASE.toml   [--quick] [-o DIR] [--resume] [--quiet]
-    eulag study stability                 [--quick] [-o DIR] [--resume] [--quiet] [--parcels N] [--only ...]
+    eulag study tsuji-morikawa            [--quick] [-o DIR] [--resume] [--report] [--quiet] [--parcels N]
+    eulag study scenes                    [--quick] [-o DIR] [--resume] [--report] [--quiet] [--parcels N]
+                                          [--only a,c]
+    eulag study error-runtime CASE.toml   [--quick] [-o DIR] [--resume] [--report] [--quiet]
+    eulag study stability                 [--quick] [-o DIR] [--resume] [--report] [--quiet] [--parcels N]
+                                          [--only ...]
 
 Each study runs its cases through :func:`eulag.coupling.run` (one dataset ``<run>.nc`` per
 case in the output folder, default ``results/<study>/``), then writes a generated table
