@@ -54,14 +54,14 @@ import os
 import platform
 import sys
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 import eulag
-from eulag.config import CASES_DIR, Case, CaseError, comparable_attrs
+from eulag.config import CASES_DIR, Case, CaseError, _public_fields, comparable_attrs
 
 __all__ = ["add_arguments", "STUDIES", "QUICK_NUMERICS", "RunRecord", "run_case", "machine_info",
            "profile_deviation", "pareto_front", "scene_cases", "stability_cases",
@@ -830,7 +830,7 @@ def _run_cells(rec: RunRecord) -> dict:
 def _numerics_differences(cases: list[Case]) -> str:
     """Which numerics of the other runs differ from the first run's (names and values)."""
     first = cases[0].numerics
-    names = [f.name for f in fields(first) if f.init and not f.name.startswith("_")]
+    names = [f.name for f in _public_fields(type(first))]
     runs = []
     for c in cases[1:]:
         d = [f"{k} {_setting_value(getattr(c.numerics, k))}" for k in names
