@@ -6,6 +6,11 @@ ring radii and sector angles follow from y and z, ring edges from cell_area (or 
 ``r_edge`` / ``theta_edge`` coordinates when the dataset has them). The stream-function
 and profile functions need the polar (r, theta) layout and say so if it is absent.
 
+Secondary-flow patterns under Monte-Carlo noise: :func:`pattern_metrics` (cell counts of the
+raw and the mirror-symmetrised stream function, azimuthal mode index, u_y signs along the
+vertical diameter, main-pair sense, upper/lower psi-peak ratio, interior solenoidal maximum)
+and :func:`replica_pattern_metrics` (their means and standard errors over replicas).
+
 Conventions: x along the axis, y up, z horizontal, right-handed; a section is drawn as
 seen looking downstream, z to the right and y up; theta is measured from +z towards +y.
 SI units throughout.
@@ -14,6 +19,7 @@ SI units throughout.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -26,6 +32,9 @@ __all__ = [
     "secondary_flow_strength", "in_plane_velocity", "vorticity", "stream_function",
     "recirculation_cells", "count_cells", "gas_maximum_half", "wall_impact_rates",
     "vertical_profile", "section_mean", "pressure_drop_summary", "attr",
+    "mirror_index", "mirror_average", "mirror_symmetrise_psi", "mirror_symmetrise_velocity",
+    "azimuthal_mode_index", "pattern_metrics", "vertical_uy_sign_pattern",
+    "interior_solenoidal_max", "upper_lower_peak_ratio", "replica_pattern_metrics",
 ]
 
 TWO_PI = 2.0 * np.pi
@@ -231,7 +240,11 @@ def vorticity(ds: xr.Dataset, x: float | None = None) -> np.ndarray:
     (no slip); the axis faces of the innermost wedges have zero length.
     """
     geo = polar_section(ds)
-    uy, uz = _field(ds, "gas_uy", x), _field(ds, "gas_uz", x)
+    return _vorticity(geo, _field(ds, "gas_uy", x), _field(ds, "gas_uz", x))
+
+
+def _vorticity(geo: PolarSection, uy: np.ndarray, uz: np.ndarray) -> np.ndarray:
+    """:func:`vorticity` of the Cartesian in-plane components uy, uz (nr, nt) [m s-1] on geo."""
     re, r, te = geo.r_edges, geo.r, geo.theta_edges
     nt = geo.nt
 
@@ -309,15 +322,35 @@ def stream_function(ds: xr.Dataset, x: float | None = None) -> np.ndarray:
     the solenoidal part of the in-plane flow and drops the divergent (potential) part.
     """
     geo = polar_section(ds)
-    omega = vorticity(ds, x)
+    return _stream_function(geo, _field(ds, "gas_uy", x), _field(ds, "gas_uz", x))
+
+
+_POISSON_LU: dict = {}
+
+
+def _poisson_lu(geo: PolarSection):
+    """Sparse LU of :func:`_poisson_matrix` for geo, cached by the geometry (the same mesh is
+    analysed many times: replicas, stations, Monte-Carlo draws)."""
+    key = (geo.r_edges.tobytes(), geo.r.tobytes(), geo.theta.tobytes(), geo.theta_edges.tobytes())
+    lu = _POISSON_LU.get(key)
+    if lu is None:
+        if len(_POISSON_LU) >= 16:
+            _POISSON_LU.clear()
+        lu = _POISSON_LU[key] = spla.splu(_poisson_matrix(geo).tocsc())
+    return lu
+
+
+def _stream_function(geo: PolarSection, uy: np.ndarray, uz: np.ndarray) -> np.ndarray:
+    """:func:`stream_function` of the Cartesian in-plane components uy, uz (nr, nt) on geo."""
+    omega = _vorticity(geo, uy, uz)
     if not np.all(np.isfinite(omega)):
         raise ValueError("gas_uy/gas_uz hold NaN or inf at this section; no stream function")
-    A = _poisson_matrix(geo)
     rhs = -(omega * geo.area).ravel()
-    psi = spla.spsolve(A.tocsc(), rhs)
+    psi = _poisson_lu(geo).solve(rhs)
     return psi.reshape(geo.nr, geo.nt)
 
 
+@lru_cache(maxsize=16)
 def _neighbours(nr: int, nt: int):
     """Adjacency lists of the polar grid: rings j +- 1, sectors k +- 1 (periodic), and every
     pair of innermost wedges (they all touch at the axis)."""
@@ -381,7 +414,8 @@ def count_cells(psi: np.ndarray, threshold: float = 0.1, area: np.ndarray | None
 
 
 def recirculation_cells(ds: xr.Dataset, x: float | None = None, threshold: float = 0.1,
-                        min_strength: float = 1e-6, details: bool = False):
+                        min_strength: float = 1e-6, details: bool = False,
+                        symmetrise: bool = False, min_area: float = 0.0):
     """Number of recirculation cells of the gas secondary flow at the section x.
 
     The cells are the connected same-sign regions of the stream function
@@ -392,15 +426,449 @@ def recirculation_cells(ds: xr.Dataset, x: float | None = None, threshold: float
     1e-6, i.e. round-off), the flow has no cells and the result is 0: this covers no in-plane
     flow and a purely divergent (irrotational) one, whose psi is round-off noise.
 
+    ``symmetrise=True`` counts the cells of the mirror-symmetrised stream function
+    (:func:`mirror_symmetrise_psi`): the problem is mirror-symmetric about z = 0, so the part
+    of psi with the wrong parity is noise; the symmetrised count is always even (see
+    :func:`pattern_metrics`). The default (False) counts the raw psi, as before.
+    ``min_area`` (fraction of the section area, default 0) drops the cells smaller than
+    that (noise blobs; :func:`pattern_metrics` uses 0.05).
+
     Returns the count (int), or ``(count, cells)`` with the list of cell dicts when
     ``details`` is true.
     """
     geo = polar_section(ds)
     psi = stream_function(ds, x)
+    if symmetrise:
+        psi = mirror_symmetrise_psi(psi, geo.theta)
     if not np.max(np.abs(psi)) > min_strength * bulk_velocity(ds) * geo.radius:
         return (0, []) if details else 0
     cells = count_cells(psi, threshold, geo.area, geo.y, geo.z)
+    if min_area > 0:
+        cells = [c for c in cells if c["area"] >= min_area * geo.area.sum()]
     return (len(cells), cells) if details else len(cells)
+
+
+# ---------------------------------------------------------------------------
+# mirror symmetry and noise-robust secondary-flow pattern metrics
+# ---------------------------------------------------------------------------
+
+def mirror_index(nt: int) -> np.ndarray:
+    """Sector map of the mirror z -> -z on a polar section of ``nt`` uniform sectors.
+
+    The mirror about the vertical plane z = 0 maps theta -> pi - theta (theta from +z towards
+    +y). Sector k of nt uniform sectors starting at theta = 0 has its mid-angle at
+    (k + 1/2) 2 pi / nt, whose image is the mid-angle of sector (nt/2 - 1 - k) mod nt; the
+    returned int array (nt,) holds that index for every k. The map is an involution. It
+    needs nt even (with nt odd the image of a mid-angle is a sector face): ValueError
+    otherwise.
+    """
+    nt = int(nt)
+    if nt < 2 or nt % 2:
+        raise ValueError(f"the mirror z -> -z needs an even number of sectors (nt uniform sectors from "
+                         f"theta = 0 map sector k to nt/2 - 1 - k); got nt = {nt}")
+    return np.mod(nt // 2 - 1 - np.arange(nt), nt)
+
+
+def _mirror_perm(nt: int, theta=None) -> np.ndarray:
+    """:func:`mirror_index`, checked against the sector mid-angles theta when given."""
+    perm = mirror_index(nt)
+    if theta is not None:
+        theta = np.asarray(theta, dtype=float)
+        if theta.size != nt:
+            raise ValueError(f"theta has {theta.size} sectors, the field {nt}")
+        image = np.pi - theta
+        miss = np.abs(np.angle(np.exp(1j * (image - theta[perm]))))
+        if miss.max() > 1e-6 * TWO_PI / nt:
+            raise ValueError("the sectors are not mirror images of each other about z = 0 (the "
+                             "mirror needs uniform sectors starting at theta = 0); largest mismatch "
+                             f"{np.degrees(miss.max()):.3g} deg")
+    return perm
+
+
+def mirror_average(field, parity: int, theta=None) -> np.ndarray:
+    """Part of a polar field with the given parity under the mirror z -> -z.
+
+    ``field`` is (..., nt), the last axis the sectors (uniform from theta = 0, nt even; see
+    :func:`mirror_index`); ``parity`` +1 (even: the field is its own mirror image, e.g. u_x,
+    u_y, p, concentration) or -1 (odd: the mirror image is minus the field, e.g. u_z and the
+    stream function psi). Returns (f + parity f o M) / 2 with (f o M)[k] = f[M(k)],
+    M = :func:`mirror_index`, in the units of the field. This is the orthogonal (cell-area
+    weighted too, the areas being mirror-symmetric) projection on the fields of that parity:
+    applying it twice changes nothing, and a field of that parity is a fixed point. With
+    ``theta`` (nt,) given, the sector mid-angles are checked to be mirror images.
+    """
+    f = np.asarray(field, dtype=float)
+    if parity not in (1, -1):
+        raise ValueError(f"parity must be +1 (even) or -1 (odd); got {parity!r}")
+    perm = _mirror_perm(f.shape[-1], theta)
+    return 0.5 * (f + parity * f[..., perm])
+
+
+def mirror_symmetrise_psi(psi, theta=None) -> np.ndarray:
+    """The mirror-symmetric part of a stream function psi (nr, nt) [m2 s-1]: the odd part
+    psi_s = (psi - psi o M) / 2 (:func:`mirror_average` with parity -1).
+
+    Why odd: a mirror-symmetric in-plane flow (about z = 0) has u_y(y, -z) = u_y(y, z) (even)
+    and u_z(y, -z) = -u_z(y, z) (odd). With u_y = -d psi/dz (:func:`stream_function`)
+    d psi/dz is even, so psi is odd (the constant is 0: psi = 0 on the wall). Check on a two-cell
+    flow psi = f(r) cos(theta): cos(pi - theta) = -cos(theta), odd; the right (z > 0) and left
+    cells turn opposite ways, as mirror images do. A four-cell flow f(r) sin(2 theta) is odd
+    too (sin(2 pi - 2 theta) = -sin(2 theta)). The even part of psi, e.g. a single cell f(r)
+    or f(r) sin(theta), would be a mirror-asymmetric flow (a net swirl, a cell turning one way
+    on both sides): in this problem, noise. psi_s vanishes on the mirror plane; a sector
+    centred on it (nt = 2 mod 4) gets psi_s = 0 exactly.
+    """
+    return mirror_average(psi, -1, theta)
+
+
+def mirror_symmetrise_velocity(uy, uz, theta=None) -> tuple[np.ndarray, np.ndarray]:
+    """Mirror-symmetric part (even u_y, odd u_z) of the Cartesian in-plane velocity (nr, nt)
+    [m s-1] (:func:`mirror_average`). Its stream function is the odd part of the stream
+    function of (u_y, u_z) (the grid and the operators of :func:`stream_function` are
+    mirror-symmetric, so symmetrising commutes with them)."""
+    return mirror_average(uy, 1, theta), mirror_average(uz, -1, theta)
+
+
+def azimuthal_mode_index(psi, geo: PolarSection, details: bool = False):
+    """Four-cell/two-cell azimuthal mode index of a stream function psi (nr, nt) on geo.
+
+    Definition: in each ring j the least-squares coefficients of the two modes,
+    c_j = sum_k psi_jk cos(theta_k) dtheta_k / sum_k cos^2(theta_k) dtheta_k and
+    s_j = sum_k psi_jk sin(2 theta_k) dtheta_k / sum_k sin^2(2 theta_k) dtheta_k [m2 s-1];
+    the mode amplitudes are the cell-area-weighted RMS of the projections over the section,
+    A_1 = sqrt(sum_jk A_jk (c_j cos theta_k)^2 / sum A) and
+    A_2 = sqrt(sum_jk A_jk (s_j sin 2 theta_k)^2 / sum A) [m2 s-1]; the index is
+    A_2 / A_1 [1] (inf if A_1 = 0 < A_2, NaN if both are 0). A two-cell flow (cells left and
+    right of the vertical diameter, psi ~ f(r) cos theta) gives 0, a four-cell flow (an upper
+    and a lower pair, psi ~ f(r) sin 2 theta) gives inf; > 1 means the four-cell mode carries
+    more of psi than the two-cell mode. Both modes are odd under the mirror z -> -z, so the
+    index is the same for psi and its symmetrised part (:func:`mirror_symmetrise_psi`).
+    ``details=True`` returns ``(index, dict(cos_theta=A_1, sin_2theta=A_2))``.
+    """
+    psi = np.asarray(psi, dtype=float)
+    dth = geo.dtheta[None, :]
+    amps = {}
+    for name, mode in (("cos_theta", np.cos(geo.theta)), ("sin_2theta", np.sin(2.0 * geo.theta))):
+        coef = (psi * mode * dth).sum(axis=1) / (mode**2 * dth).sum()
+        proj = coef[:, None] * mode[None, :]
+        amps[name] = float(np.sqrt((geo.area * proj**2).sum() / geo.area.sum()))
+    a1, a2 = amps["cos_theta"], amps["sin_2theta"]
+    index = a2 / a1 if a1 > 0 else (float("inf") if a2 > 0 else float("nan"))
+    return (index, amps) if details else index
+
+
+def _centred_difference(fm, f0, fp, hm, hp):
+    """Second-order derivative at the middle of three points at offsets -hm, 0, +hp."""
+    return (hm**2 * fp - hp**2 * fm + (hp**2 - hm**2) * f0) / (hm * hp * (hm + hp))
+
+
+def _psi_velocity(geo: PolarSection, psi) -> tuple[np.ndarray, np.ndarray]:
+    """Polar velocity (u_r, u_theta) (nr, nt) [m s-1] of the solenoidal flow curl(psi e_x) at
+    the cell centres: u_r = (1/r) d psi/d theta, u_theta = -d psi/dr, second-order centred
+    differences (periodic in theta; ring 0 takes its inner point across the axis, psi of the
+    opposite sector at -r_0; the wall ring its outer point on the wall, psi = 0)."""
+    psi = np.asarray(psi, dtype=float)
+    nr, nt = psi.shape
+    th = geo.theta
+    hp = np.mod(np.roll(th, -1) - th, TWO_PI)
+    hm = np.mod(th - np.roll(th, 1), TWO_PI)
+    dpsi_dth = _centred_difference(np.roll(psi, 1, axis=1), psi, np.roll(psi, -1, axis=1),
+                                   hm[None, :], hp[None, :])
+    r = geo.r
+    inner = np.vstack([np.roll(psi[:1], -(nt // 2), axis=1), psi[:-1]])   # ring 0: across the axis
+    outer = np.vstack([psi[1:], np.zeros((1, nt))])                      # wall ring: psi = 0 on the wall
+    rm = np.concatenate([[2.0 * r[0]], np.diff(r)])
+    rp = np.concatenate([np.diff(r), [geo.radius - r[-1]]])
+    dpsi_dr = _centred_difference(inner, psi, outer, rm[:, None], rp[:, None])
+    return dpsi_dth / r[:, None], -dpsi_dr
+
+
+def _vertical_uy(geo: PolarSection, uy, segments: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Segment means of u_y along the vertical diameter, from the mirror-even part of uy.
+
+    Returns (y, u, sigma), (2 segments,) each, ordered from the bottom wall to the top wall:
+    each radius (theta = 270 deg below the centre, 90 deg above it) is cut into ``segments``
+    groups of consecutive rings (``numpy.array_split`` of the rings, inner to outer); u
+    [m s-1] is the mean over the group's rings of the mirror-even part of uy
+    (:func:`mirror_average`) interpolated onto the ray as :func:`vertical_profile` does
+    (where a sector face lies on the ray, the two sectors beside it are mirror images and u is
+    their mean); y [m] the group's mean ring radius with the ray's sign. sigma [m s-1] is the
+    noise standard deviation of u, estimated from the mirror-odd part of uy, which a
+    mirror-symmetric flow does not have: the same ring-group mean of the odd part, taken in
+    every sector that is not its own image, has mean square s^2, and a group mean of
+    per-sector noise has variance 2 s^2 (odd = (n_k - n_M(k))/2); sigma^2 = 2 s^2 sum_k c_k^2,
+    c_k the weights of u on the sectors (this assumes noise independent between sectors;
+    the ring-group mean keeps any radial correlation of the noise).
+    """
+    nr, nt = uy.shape
+    perm = _mirror_perm(nt, geo.theta)
+    even = mirror_average(uy, 1)
+    odd = uy - even
+    moving = perm != np.arange(nt)
+    groups = [g for g in np.array_split(np.arange(nr), max(1, min(int(segments), nr))) if g.size]
+    ys, us, ss = [], [], []
+    for target, sign in ((1.5 * np.pi, -1.0), (0.5 * np.pi, 1.0)):
+        k0, k1, w = _ray_weights(geo.theta, target)
+        c = np.zeros(nt)
+        for k, wk in ((k0, 1.0 - w), (k1, w)):
+            c[k] += 0.5 * wk
+            c[perm[k]] += 0.5 * wk
+        line = (1.0 - w) * even[:, k0] + w * even[:, k1]
+        order = groups[::-1] if sign < 0 else groups        # bottom wall -> centre -> top wall
+        for g in order:
+            gm = odd[g].mean(axis=0)                          # (nt,) ring-group means of the odd part
+            s2 = float((gm[moving] ** 2).mean()) if moving.any() else 0.0
+            # lag-1 correlation between neighbouring sectors, from the pairs that are not
+            # mirror images of each other (clipped to [0, 1])
+            nxt = np.roll(np.arange(nt), -1)
+            pair = moving & moving[nxt] & (perm != nxt)
+            rho = float(np.clip((gm[pair] * gm[nxt][pair]).mean() / s2, 0.0, 1.0)) \
+                if s2 > 0 and pair.any() else 0.0
+            quad = float((c**2).sum() + 2.0 * rho * (c * np.roll(c, -1)).sum())
+            ys.append(sign * float(geo.r[g].mean()))
+            us.append(float(line[g].mean()))
+            ss.append(float(np.sqrt(2.0 * s2 * quad)))
+    return np.array(ys), np.array(us), np.array(ss)
+
+
+def _sign_runs(u, sigma, noise_factor: float, floor: float) -> list[int]:
+    """Signs (+1/-1), in order, of the runs of segments whose |u| exceeds the noise-aware level
+    max(noise_factor sigma, floor max|u|); segments below the level are skipped (they do not
+    split a run), so neighbouring runs of the same sign merge."""
+    u = np.asarray(u, dtype=float)
+    top = float(np.max(np.abs(u))) if u.size else 0.0
+    if not top > 0.0:
+        return []
+    level = np.maximum(noise_factor * np.asarray(sigma, dtype=float), floor * top)
+    pattern: list[int] = []
+    for v, lv in zip(u, level):
+        if abs(v) > lv:
+            sgn = 1 if v > 0 else -1
+            if not pattern or pattern[-1] != sgn:
+                pattern.append(sgn)
+    return pattern
+
+
+def _peak_ratio(psi, y) -> float:
+    """max|psi| over the cells with y > 0 / max|psi| over y < 0 [1] (inf / NaN if the lower
+    half is 0)."""
+    up = float(np.max(np.abs(np.where(y > 0, psi, 0.0))))
+    low = float(np.max(np.abs(np.where(y < 0, psi, 0.0))))
+    if low > 0:
+        return up / low
+    return float("inf") if up > 0 else float("nan")
+
+
+def _pattern(geo: PolarSection, uy, uz, u_b: float, threshold: float, min_area: float,
+             noise_factor: float, segments: int, floor: float, min_strength: float) -> dict:
+    """:func:`pattern_metrics` of the Cartesian in-plane velocity uy, uz (nr, nt) [m s-1] on geo,
+    U_b = u_b [m s-1]."""
+    uy = np.asarray(uy, dtype=float)
+    uz = np.asarray(uz, dtype=float)
+    psi = _stream_function(geo, uy, uz)
+    psi_s = mirror_symmetrise_psi(psi, geo.theta)
+    small = min_strength * u_b * geo.radius
+    raw = count_cells(psi, threshold) if np.max(np.abs(psi)) > small else []
+    cells = count_cells(psi_s, threshold, geo.area, geo.y, geo.z) if np.max(np.abs(psi_s)) > small else []
+    cells = [c for c in cells if c["area"] >= min_area * geo.area.sum()]
+    right = [c for c in cells if c["z"] > 0]
+    sense = None
+    if right:
+        sense = "down on the axis" if right[0]["sign"] > 0 else "up on the axis"
+    y, u, sig = _vertical_uy(geo, uy, segments)
+    pattern = _sign_runs(u, sig, noise_factor, floor)
+    line = _vertical_line(geo, mirror_average(uy, 1))[1]
+    centre = 0.5 * (line[geo.nr - 1] + line[geo.nr])   # innermost ring, y = -r_0 and +r_0
+    ur, ut = _psi_velocity(geo, psi_s)
+    interior = np.hypot(ur, ut)[:-1]
+    return {
+        "count_raw": len(raw),
+        "count_symmetrised": len(cells),
+        "mode_index": azimuthal_mode_index(psi_s, geo),
+        "uy_sign_pattern": pattern,
+        "uy_sign_changes": max(len(pattern) - 1, 0),
+        "main_pair_sense": sense,
+        "upper_lower_peak_ratio": _peak_ratio(psi_s, geo.y),
+        "interior_solenoidal_max": 100.0 * float(interior.max()) / u_b if interior.size else float("nan"),
+        "strength": 100.0 * float(np.max(np.hypot(uy, uz))) / u_b,
+        "uy_centre": float(centre),
+    }
+
+
+def pattern_metrics(ds: xr.Dataset, x: float | None = None, threshold: float = 0.1,
+                    min_area: float = 0.05, noise_factor: float = 3.0, segments: int = 4, floor: float = 0.05,
+                    min_strength: float = 1e-6) -> dict:
+    """Secondary-flow pattern metrics at the section x that per-cell noise cannot fool.
+
+    The problem (horizontal pipe, gravity -y) is mirror-symmetric about z = 0, so the parts
+    of the in-plane gas flow with the wrong mirror parity are Monte-Carlo noise of the
+    particle sources; the metrics read the mirror-symmetric part. Needs the polar section
+    with nt even, uniform sectors from theta = 0 (:func:`mirror_index`). Keys:
+
+    - ``count_raw`` [1]: :func:`recirculation_cells` of the raw stream function (connected
+      same-sign regions above ``threshold`` of max|psi|; odd counts happen under noise).
+    - ``count_symmetrised`` [1]: the same count on psi_s = :func:`mirror_symmetrise_psi`,
+      leaving out cells smaller than ``min_area`` (fraction of the section area, default
+      0.05: noise blobs above the level are a few grid cells, < 2 % of the section in the
+      tests, while a cell of a two- or four-cell flow covers 10-50 %). Always even: the mirror
+      maps the neighbour graph of :func:`count_cells` (ring and sector neighbours, all
+      innermost wedges through the axis) onto itself, psi_s onto -psi_s and the cell areas
+      onto themselves, so it maps each counted cell onto a counted cell of the other sign; no
+      cell is its own image (that would need both signs in one cell), and none straddles the
+      mirror plane, where psi_s = 0 (the two sectors beside the plane hold opposite psi_s, a
+      sector centred on it holds 0, below the level).
+    - ``mode_index`` [1]: :func:`azimuthal_mode_index` of psi_s, A(sin 2 theta) / A(cos theta):
+      ~0 for two cells, large for four; > 1 four-cell-like.
+    - ``uy_sign_pattern`` (list of +1/-1, from the bottom wall to the top wall) and
+      ``uy_sign_changes`` (its length - 1): each radius of the vertical diameter is cut into
+      ``segments`` groups of rings; a segment's sign counts where its mean mirror-even u_y
+      exceeds max(noise_factor sigma, floor max|segment mean|), sigma the segment's noise
+      estimated from the mirror-odd part of u_y (:func:`_vertical_uy`); segments below the
+      level are skipped and equal neighbouring signs merged. Two cells
+      (psi = a f(r) cos theta, f = (1 - r^2/R^2)^2 r/R): u_y = -a (1 - r^2/R^2)^2 / R on the
+      whole diameter, one sign, 0 changes. Four cells (psi = a (1 - r^2/R^2)^2 (r/R)^2 sin 2 theta
+      = 2 a (1 - r^2/R^2)^2 y z / R^2): u_y = -2 a (1 - r^2/R^2)^2 y / R^2 on z = 0, which
+      changes sign once, at the centre (where u_y = 0): pattern [+1, -1] for a > 0 (the flow
+      meets at the centre along the vertical diameter), [-1, +1] for a < 0 (it leaves the
+      centre); 1 change. More changes mean more than one pair along the diameter.
+    - ``main_pair_sense``: "up on the axis" or "down on the axis", the rotation sense of the
+      strongest cell of psi_s in the right half (z > 0): clockwise (psi < 0) turns upward on
+      its side towards the vertical diameter and downward at the side wall ("up on the axis",
+      the paper's two-cell pattern), counter-clockwise the reverse. For a two-cell flow this is
+      the sign of u_y at the centre; for a four-cell flow (u_y = 0 at the centre) it is the
+      direction along the half of the vertical diameter that the stronger pair borders.
+      None without cells.
+    - ``upper_lower_peak_ratio`` [1]: max|psi_s| over the grid cells with y > 0 / max|psi_s|
+      over those with y < 0 (inf / NaN when the lower half is 0).
+    - ``interior_solenoidal_max`` [% of U_b]: the largest speed of the solenoidal flow
+      u = curl(psi_s e_x) (:func:`_psi_velocity`, centred differences of psi_s at the cell
+      centres) outside the wall ring.
+    - ``strength`` [% of U_b]: :func:`secondary_flow_strength`, the largest raw in-plane speed,
+      which includes the divergent part, the noise and the wall ring.
+    - ``uy_centre`` [m s-1]: the mirror-even u_y on the vertical diameter at the centre (mean
+      of the innermost ring's two points).
+
+    U_b is :func:`bulk_velocity`. ``min_strength``: as in :func:`recirculation_cells` (below
+    it both counts are 0). ``recirculation_cells(ds, x, threshold, symmetrise=True,
+    min_area=0.05)`` gives ``count_symmetrised``. Error bars from replicas:
+    :func:`replica_pattern_metrics`.
+    """
+    geo = polar_section(ds)
+    return _pattern(geo, _field(ds, "gas_uy", x), _field(ds, "gas_uz", x), bulk_velocity(ds),
+                    threshold, min_area, noise_factor, segments, floor, min_strength)
+
+
+def vertical_uy_sign_pattern(ds: xr.Dataset, x: float | None = None, noise_factor: float = 3.0,
+                             segments: int = 4, floor: float = 0.05) -> tuple[list[int], int]:
+    """Sign pattern of u_y along the vertical diameter (bottom to top) and its number of sign
+    changes: ``(pattern, changes)`` as ``uy_sign_pattern`` / ``uy_sign_changes`` of
+    :func:`pattern_metrics`."""
+    geo = polar_section(ds)
+    y, u, sig = _vertical_uy(geo, _field(ds, "gas_uy", x), segments)
+    pattern = _sign_runs(u, sig, noise_factor, floor)
+    return pattern, max(len(pattern) - 1, 0)
+
+
+def interior_solenoidal_max(ds: xr.Dataset, x: float | None = None, symmetrise: bool = True) -> float:
+    """Largest in-plane speed of the solenoidal part of the gas flow, u = curl(psi e_x) with psi
+    from :func:`stream_function` (mirror-symmetrised when ``symmetrise``), at the cell
+    centres outside the wall ring, in % of the bulk velocity [%]. Unlike
+    :func:`secondary_flow_strength` it leaves out the divergent part of the in-plane flow
+    (-du_x/dx in a developing pipe) and the wall ring."""
+    geo = polar_section(ds)
+    psi = stream_function(ds, x)
+    if symmetrise:
+        psi = mirror_symmetrise_psi(psi, geo.theta)
+    ur, ut = _psi_velocity(geo, psi)
+    return 100.0 * float(np.hypot(ur, ut)[:-1].max()) / bulk_velocity(ds)
+
+
+def upper_lower_peak_ratio(ds: xr.Dataset, x: float | None = None, symmetrise: bool = True) -> float:
+    """max|psi| over the cells with y > 0 divided by max|psi| over y < 0 [1], psi the stream
+    function (:func:`stream_function`, mirror-symmetrised when ``symmetrise``)."""
+    geo = polar_section(ds)
+    psi = stream_function(ds, x)
+    if symmetrise:
+        psi = mirror_symmetrise_psi(psi, geo.theta)
+    return _peak_ratio(psi, geo.y)
+
+
+_NUMERIC_PATTERN_KEYS = ("count_raw", "count_symmetrised", "mode_index", "uy_sign_changes",
+                         "upper_lower_peak_ratio", "interior_solenoidal_max", "strength", "uy_centre")
+
+
+def _agreement(values) -> tuple[Any, float]:
+    """Most common value (first seen on ties) and the fraction of values equal to it."""
+    values = [tuple(v) if isinstance(v, list) else v for v in values]
+    best, best_n = None, 0
+    for v in values:
+        n = values.count(v)
+        if n > best_n:
+            best, best_n = v, n
+    best = list(best) if isinstance(best, tuple) else best
+    return best, best_n / len(values)
+
+
+def replica_pattern_metrics(replicas, x: float | None = None, template: xr.Dataset | None = None,
+                            **options) -> dict:
+    """:func:`pattern_metrics` of replicas of one section, with error bars.
+
+    ``replicas``: a list of datasets (e.g. the gas solved on each final coupling pass's
+    sources), or of ``(u_y, u_z)`` (nr, nt) arrays [m s-1] on the section of ``template``
+    (whose geometry and bulk velocity are used). ``options`` go to :func:`pattern_metrics`.
+    Returns a dict:
+
+    - ``n``: number of replicas; ``replicas``: the list of their metric dicts;
+    - ``mean`` / ``stderr``: for each numeric metric (count_raw, count_symmetrised,
+      mode_index, uy_sign_changes, upper_lower_peak_ratio, interior_solenoidal_max, strength,
+      uy_centre) the mean over the replicas and its standard error std(ddof=1)/sqrt(n)
+      (NaN for n = 1), in the metric's units;
+    - ``count``: the most common symmetrised count, ``count_agreement``: the fraction of the
+      replicas giving it; likewise ``count_raw`` / ``count_raw_agreement``,
+      ``main_pair_sense`` / ``main_pair_sense_agreement`` and ``uy_sign_pattern`` /
+      ``uy_sign_pattern_agreement``;
+    - ``pooled``: :func:`pattern_metrics` of the replica-mean velocity (noise down by
+      sqrt(n) if the replicas' noise is independent).
+    """
+    replicas = list(replicas)
+    if not replicas:
+        raise ValueError("no replicas")
+    opts = dict(threshold=0.1, min_area=0.05, noise_factor=3.0, segments=4, floor=0.05, min_strength=1e-6)
+    unknown = set(options) - set(opts)
+    if unknown:
+        raise TypeError(f"unknown options {sorted(unknown)}; allowed: {sorted(opts)}")
+    opts.update(options)
+    fields = []
+    if all(isinstance(r, xr.Dataset) for r in replicas):
+        base = template if template is not None else replicas[0]
+        for r in replicas:
+            fields.append((_field(r, "gas_uy", x), _field(r, "gas_uz", x)))
+    else:
+        if template is None:
+            raise ValueError("replicas given as (u_y, u_z) arrays need a template dataset for the geometry")
+        base = template
+        fields = [(np.asarray(a, dtype=float), np.asarray(b, dtype=float)) for a, b in replicas]
+    geo = polar_section(base)
+    u_b = bulk_velocity(base)
+    shape = (geo.nr, geo.nt)
+    for a, b in fields:
+        if a.shape != shape or b.shape != shape:
+            raise ValueError(f"a replica's velocity has shape {a.shape}/{b.shape}, the section {shape}")
+    per = [_pattern(geo, a, b, u_b, **opts) for a, b in fields]
+    n = len(per)
+    mean, stderr = {}, {}
+    for key in _NUMERIC_PATTERN_KEYS:
+        v = np.array([float(m[key]) for m in per])
+        mean[key] = float(v.mean())
+        stderr[key] = float(v.std(ddof=1) / np.sqrt(n)) if n > 1 else float("nan")
+    out: dict[str, Any] = {"n": n, "replicas": per, "mean": mean, "stderr": stderr}
+    for key, name in (("count_symmetrised", "count"), ("count_raw", "count_raw"),
+                      ("main_pair_sense", "main_pair_sense"), ("uy_sign_pattern", "uy_sign_pattern")):
+        out[name], out[f"{name}_agreement"] = _agreement([m[key] for m in per])
+    uy = np.mean([a for a, _ in fields], axis=0)
+    uz = np.mean([b for _, b in fields], axis=0)
+    out["pooled"] = _pattern(geo, uy, uz, u_b, **opts)
+    return out
 
 
 # ---------------------------------------------------------------------------
@@ -487,7 +955,11 @@ def vertical_profile(ds: xr.Dataset, var, x: float | None = None) -> tuple[np.nd
     particle passed). Returns ``(y, values)`` sorted by y [m], [units of var].
     """
     geo = polar_section(ds)
-    f = _field(ds, var, x)
+    return _vertical_line(geo, _field(ds, var, x))
+
+
+def _vertical_line(geo: PolarSection, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`vertical_profile` of an (nr, nt) array f on geo: ``(y, values)`` sorted by y."""
     ys, vs = [], []
     for target, sign in ((0.5 * np.pi, 1.0), (1.5 * np.pi, -1.0)):
         k0, k1, w = _ray_weights(geo.theta, target)

@@ -377,6 +377,7 @@ def _coupled_summary(case, loop, ds, out) -> str:
         f"  secondary    {strength}",
         f"  parcels      {int(h.parcels[-1])} per final pass; lost {int(sum(h.lost))}, stuck {int(sum(h.stuck))}",
         *_collision_momentum_line(case, h),
+        *_collision_force_line(case, ds),
         f"  wall time    gas {t.get('gas_solve', 0):.1f} s, Lagrangian {t.get('lagrangian', 0):.1f} s, "
         f"checkpoints {t.get('checkpoint', 0):.1f} s, total {t.get('total', 0):.1f} s",
         f"  written      {out}",
@@ -395,6 +396,18 @@ def _collision_momentum_line(case, h) -> list[str]:
             else "")
     return [f"  collisions   net momentum {100 * cm:+.2g} % of the particle inflow (final passes; real "
             f"collision pairs give none, README \"Coupling\" 6{flag})"]
+
+
+def _collision_force_line(case, ds) -> list[str]:
+    """The pipe integral of the collisions' net force on the particles, x, y, z, with its
+    standard error (zero in the mean for momentum-conserving collisions)."""
+    if "particle_collision_force_total_x" not in ds:
+        return []
+    tot = [float(ds[f"particle_collision_force_total_{c}"]) for c in "xyz"]
+    se = [float(ds[f"particle_collision_force_total_{c}_stderr"]) for c in "xyz"]
+    parts = ", ".join(f"{t:+.3g} ± {e:.2g}" for t, e in zip(tot, se))
+    return [f"  collisions   net force on the particles (x, y, z) = ({parts}) N "
+            f"(physics.partner_momentum = {case.physics.partner_momentum})"]
 
 
 def _final(field) -> float:

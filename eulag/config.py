@@ -494,6 +494,15 @@ class PhysicsConfig(_Section):
         per-particle R that varies across the wall cell makes the collisions' net momentum
         non-zero). Every committed study result ran with ``"particle"``; ``"cell"`` has not yet
         finished a coupled run.
+    partner_momentum : str
+        What becomes of the impulse the fictitious collision partners would receive:
+        ``"discarded"`` (default; Sommerfeld 2001, only the real particle is updated, so the
+        collisions conserve momentum only while the partners' Gaussian law matches the cell's
+        particles, which rebounds from a rough wall skew) or ``"returned"`` (the cell's
+        particles receive the acceleration -F/c of the previous passes' statistics, F the net
+        force of the collision jumps per volume and c the particle concentration, spread over
+        their residence time, so the net collision force per cell vanishes in the mean at the
+        coupled steady state; ``particles.PhysicsOptions``).
     """
 
     section: ClassVar[str] = "physics"
@@ -519,6 +528,8 @@ class PhysicsConfig(_Section):
                                    default="seen-energy", choices=("seen-energy", "none"))
     partner_correlation: str = _param(STRING, "where the collision partner's correlation R(St) is taken",
                                       default="particle", choices=("particle", "cell"))
+    partner_momentum: str = _param(STRING, "the collision partners' impulse", default="discarded",
+                                   choices=("discarded", "returned"))
 
     def _resolve_and_check(self):
         if self.magnus_lift is None:
@@ -585,6 +596,12 @@ class NumericsConfig(_Section):
     residence_cap : float
         Residence time after which a parcel is stopped and counted as stuck [s], > 0
         (default 50 pipe.length / gas.bulk_velocity).
+    mirror_symmetry : bool
+        Average every pass's sampled particle fields (sources, statistics, wall impacts) with
+        their mirror image z -> -z before they are relaxed (``particles.symmetry``): exact in
+        the mean for a horizontal pipe with gravity along -y, half the variance, no modes of
+        the wrong parity. Default true (every case of this model is mirror-symmetric: uniform
+        injection, isotropic wall roughness, gravity in the mirror plane).
     """
 
     section: ClassVar[str] = "numerics"
@@ -620,6 +637,7 @@ class NumericsConfig(_Section):
     residence_cap: float | None = _param(NUMBER, "parcel residence-time cap", unit="s",
                                          default=None, gt=0.0, optional=True,
                                          none_label="50 pipe.length / gas.bulk_velocity")
+    mirror_symmetry: bool = _param(BOOLEAN, "mirror-symmetric sampling", default=True)
 
     def _resolve_and_check(self):
         if self.parcels_start is None:
@@ -650,7 +668,9 @@ _TOP_KEYS = ["name", "description", *_SECTIONS]
 #: does what eulag did before the key existed. A stored case without the key is the same case
 #: as one holding that value, so comparisons of stored cases drop it there
 #: (:func:`comparable_attrs`); the datasets' attributes keep every key.
-LATER_KEYS: dict[str, Any] = {"physics.partner_correlation": "particle"}
+LATER_KEYS: dict[str, Any] = {"physics.partner_correlation": "particle",
+                               "physics.partner_momentum": "discarded",
+                               "numerics.mirror_symmetry": "false"}
 
 
 def comparable_attrs(attrs: dict) -> dict:

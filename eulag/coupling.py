@@ -296,6 +296,7 @@ def physics_options(case):
         rotation=ph.rotation, langevin=ph.langevin, drift_correction=ph.langevin_drift_correction,
         gravity=ph.gravity, inter_particle_collisions=ph.inter_particle_collisions,
         step_rule=case.numerics.step_rule, partner_correlation=ph.partner_correlation,
+        partner_momentum=ph.partner_momentum,
         wall=WallOptions(impact_angle=w.impact_angle, shadow_effect=w.shadow_effect,
                          lateral_roughness=w.lateral_roughness, rotation=ph.rotation),
         interparticle=InterparticleOptions(restitution=p.restitution, friction=p.friction,
@@ -577,6 +578,8 @@ class CouplingLoop:
         t0 = time.perf_counter()
         sample = self.tracker(self.mesh, self.gas, self.spec, self.physics, parcels=parcels_m,
                               seed=n.seed, pass_index=m, stats=stats, settings=self.settings)
+        if n.mirror_symmetry:
+            sample = sample.mirror_symmetrised()
         t_part = time.perf_counter() - t0
         self.timings["lagrangian"] += t_part
         counts = sample.counts

@@ -227,6 +227,20 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
     cell("particle_mass_flux", s.mass_flux, "kg m-2 s-1", "axial particle mass flux")
     cell("particle_mass_flux_stderr", s.mass_flux_stderr, "kg m-2 s-1",
          "standard error of particle_mass_flux (batch spread)")
+    if case.physics.inter_particle_collisions:
+        for c in range(3):
+            cell(f"particle_collision_force_{names[c]}", s.collision_force(c), "N m-3",
+                 f"net force of the inter-particle collisions on the particles, {names[c]} "
+                 f"(physics.partner_momentum = {case.physics.partner_momentum}; zero in the mean "
+                 "for momentum-conserving collisions)")
+            cell(f"particle_collision_force_{names[c]}_stderr", s.collision_force_stderr(c), "N m-3",
+                 f"standard error of particle_collision_force_{names[c]} (batch spread)")
+        tot, se = s.collision_force_total
+        for c in range(3):
+            ds[f"particle_collision_force_total_{names[c]}"] = _var(
+                (), tot[c], "N", f"pipe integral of particle_collision_force_{names[c]}")
+            ds[f"particle_collision_force_total_{names[c]}_stderr"] = _var(
+                (), se[c], "N", f"standard error of particle_collision_force_total_{names[c]} (batch spread)")
     src = loop.sources
     applied = src is not None
     zero = np.zeros(mesh.shape)

@@ -63,7 +63,7 @@ from collisions.wall import (WALL_REBOUND, WALL_ROLLING, WALL_SLIDING, WallOptio
 
 from . import forces as fl
 from .fields import F_DKX, F_EPS, F_K, F_UX, F_WX, NF, interpolate
-from .layout import (A_BETA, A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
+from .layout import (A_BETA, A_J, A_PP, A_PPK, CS_APP, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP,
                      B_RESIDENCE, B_WALL, B_WEIGHT, NBUD, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP,
                      C_REBOUNDS, C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK,
@@ -103,6 +103,15 @@ class PhysicsOptions:
         ``tracking.cell_stokes``).  With the partner drawn
         about the cell mean, a per-particle R that varies together with u₁ − ū₁ inside a cell
         makes the collisions' net momentum non-zero (README "Coupling" 6).
+    partner_momentum : "discarded" | "returned" — what becomes of the momentum the fictitious
+        partners would have received.  "discarded" (Sommerfeld 2001): only the real particle
+        is updated, so the collisions conserve momentum only while the partners' Gaussian
+        velocity law matches the cell's particles; with skewed rebound velocities near a
+        rough wall they do not (the collision force per cell is then up to several times the
+        gas source).  "returned": each cell's particles receive, spread over their residence
+        time, the acceleration a = −F_jump/c of the previous pass's statistics (``layout.CS_APP``:
+        the net collision force per unit volume F_jump over the particle concentration c), so
+        the net collision impulse per cell vanishes in the mean at the coupled steady state.
     wall : collisions.WallOptions;  interparticle : collisions.InterparticleOptions.
     """
 
@@ -116,6 +125,7 @@ class PhysicsOptions:
     inter_particle_collisions: bool = True
     step_rule: str = "default"
     partner_correlation: str = "particle"
+    partner_momentum: str = "discarded"
     wall: WallOptions = field(default_factory=WallOptions)
     interparticle: InterparticleOptions = field(default_factory=InterparticleOptions)
 
@@ -128,6 +138,8 @@ class PhysicsOptions:
             raise ValueError(f"step_rule = {self.step_rule!r}: allowed default, paper")
         if self.partner_correlation not in ("particle", "cell"):
             raise ValueError(f"partner_correlation = {self.partner_correlation!r}: allowed particle, cell")
+        if self.partner_momentum not in ("discarded", "returned"):
+            raise ValueError(f"partner_momentum = {self.partner_momentum!r}: allowed discarded, returned")
         if self.wall.rotation != self.rotation:
             object.__setattr__(self, "wall", WallOptions(**{**self.wall.__dict__, "rotation": self.rotation}))
         if self.interparticle.rotation != self.rotation:
@@ -436,6 +448,7 @@ def make_tracker(options=PhysicsOptions()):
     pp = options.inter_particle_collisions
     paper_rule = options.step_rule == "paper"
     cell_corr = options.partner_correlation == "cell"
+    returned = pp and options.partner_momentum == "returned"
     rotation = options.rotation
     gravity = options.gravity
 
@@ -603,6 +616,9 @@ def make_tracker(options=PhysicsOptions()):
                 uy = dys / dt
                 uz = dzs / dt
                 last = seg_cell[0]
+                kick0 = 0.0
+                kick1 = 0.0
+                kick2 = 0.0
                 for s_ in range(nseg):
                     f = seg_frac[s_]
                     if f <= 0.0:
@@ -635,6 +651,20 @@ def make_tracker(options=PhysicsOptions()):
                     out[base + A_VISITS] += 1.0
                     out[base + A_KSEEN] += wn * kseen
                     out[base + A_BETA] += wmf / tau_step
+                    if returned:  # the partners' momentum, returned over the residence time
+                        a0 = stats[cc_, CS_APP]
+                        a1 = stats[cc_, CS_APP + 1]
+                        a2 = stats[cc_, CS_APP + 2]
+                        if a0 != 0.0 or a1 != 0.0 or a2 != 0.0:
+                            kick0 += f * a0
+                            kick1 += f * a1
+                            kick2 += f * a2
+                            out[base + A_PPK] += wmf * a0
+                            out[base + A_PPK + 1] += wmf * a1
+                            out[base + A_PPK + 2] += wmf * a2
+                            out[base + A_PP] += wmf * a0
+                            out[base + A_PP + 1] += wmf * a1
+                            out[base + A_PP + 2] += wmf * a2
                 if inside < 1.0:  # the part beyond the inlet/outlet plane: its impulse stays in the pipe
                     base = last * NACC
                     rest = 1.0 - inside
@@ -645,6 +675,13 @@ def make_tracker(options=PhysicsOptions()):
                     out[base + A_BETA] += w_m * rest * dt / tau_step
                 for c in range(3):
                     out[off_bud + B_J + c] += ndot * imp[c]
+                if returned:  # a velocity jump outside J, like the collisions' (DESIGN.md)
+                    vel[0] += kick0 * dt
+                    vel[1] += kick1 * dt
+                    vel[2] += kick2 * dt
+                    out[off_bud + B_PP] += w_m * kick0 * dt
+                    out[off_bud + B_PP + 1] += w_m * kick1 * dt
+                    out[off_bud + B_PP + 2] += w_m * kick2 * dt
                 out[off_bud + B_WEIGHT + 1] -= w_m * gred * dt
                 t += dt
                 steps += 1
@@ -753,6 +790,7 @@ def make_tracker(options=PhysicsOptions()):
                                 out[off_cnt + C_PP] += 1.0
                                 for c in range(3):
                                     out[off_bud + B_PP + c] += w_m * dv[c]
+                                    out[cell * NACC + A_PP + c] += w_m * dv[c]
                 # ---- fates
                 if not (math.isfinite(pos[0]) and math.isfinite(pos[1]) and math.isfinite(pos[2])
                         and math.isfinite(vel[0]) and math.isfinite(vel[1]) and math.isfinite(vel[2])):

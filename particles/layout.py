@@ -28,7 +28,17 @@ A_NWW = 15  # 15..17 Σ Ṅ δt ω_i²     [rad/s]      → spin rms
 A_VISITS = 18  # segments sampled (unweighted)     → poorly sampled cells
 A_KSEEN = 19  # Σ Ṅ δt ½|u′_F|²          [m2/s]      → ÷ A_WN: turbulent energy the particles see
 A_BETA = 20  # Σ Ṅ m δt / τ_p            [kg/s]      → ÷ V: drag coefficient β = −∂S/∂U of the source
-NACC = 21
+A_PP = 21  # 21..23 Σ Ṅ m Δu_i of inter-particle collisions in the cell, partner-momentum
+#            return included [N] → ÷ V: collision force on the particles [N m-3]
+A_PPK = 24  # 24..26 Σ Ṅ m δt a_i, the partner momentum returned as a mean acceleration a
+#             (physics.partner_momentum = "returned"; zero otherwise) [N]
+NACC = 27
+
+# Parity of each cell accumulator under the mirror z → −z of the section (+1 even, −1 odd):
+# velocities, impulses and forces are polar vectors (z component odd), spins axial vectors
+# (x and y components odd), everything else a scalar (particles.symmetry).
+ACC_PARITY = (1, 1, 1, 1, -1, 1, 1, 1, 1, 1, -1, 1, -1, -1, 1, 1, 1, 1, 1, 1, 1,
+              1, 1, -1, 1, 1, -1)
 
 # ---------------------------------------------------------------- wall faces (x, theta)
 W_COUNT = 0  # Σ Ṅ over impacts             [1/s]
@@ -76,7 +86,8 @@ CS_WM = 8  # 8..10 mean spin [rad/s]
 CS_WRMS = 11  # 11..13 spin rms [rad/s]
 CS_OK = 14  # 1 if the cell is sampled well enough for collisions
 CS_ST = 15  # Stokes number tau_p/T_L of the cell (cell-mean slip, cell-centre k and eps) [-]
-NCS = 16
+CS_APP = 16  # 16..18 acceleration returning the partners' momentum to the cell's particles [m s-2]
+NCS = 19
 
 # ---------------------------------------------------------------- runtime parameters
 P_RHO_F = 0  # gas density [kg/m3]

@@ -26,7 +26,7 @@ from collisions.wall import minimum_bounce_speed
 
 from .fields import FieldTable
 from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker
-from .layout import (A_BETA, A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
+from .layout import (A_BETA, A_J, A_KSEEN, A_PP, A_PPK, CS_APP, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP, B_RESIDENCE,
                      B_WALL, B_WEIGHT, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP, C_REBOUNDS,
                      C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK, CS_RMS, CS_ST, CS_U,
@@ -34,6 +34,7 @@ from .layout import (A_BETA, A_J, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VIS
                      P_DP, P_GRAV, P_INJ_RMS, P_MAXSTEPS, P_MIN_VISITS, P_MU, P_NDOT, P_RHO_F,
                      P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, W_ANGLE, W_COUNT, W_SPEED,
                      Layout)
+from .symmetry import mirror_average_vector
 
 __all__ = ["ParticleSpec", "TrackSettings", "Sample", "track", "batch_plan", "GRAVITY", "PassInputs",
            "prepare_pass", "run_superbatch", "fold_superbatches", "make_sample", "cell_stokes"]
@@ -241,6 +242,39 @@ class Sample:
         (number-weighted; NaN in unvisited cells)."""
         return self._ratio(A_KSEEN, A_WN)
 
+    def collision_force(self, c):
+        """Net force of the inter-particle collisions on the particles, component c [N m-3]:
+        the collision velocity jumps (and, with partner_momentum = "returned", the returned
+        partner momentum) per unit time and volume.  Real collisions exchange momentum between
+        particles of one cell, so a momentum-conserving model gives zero in the mean."""
+        return self._acc(A_PP + c) / self.volume
+
+    def collision_force_stderr(self, c):
+        return self._sum_stderr(A_PP + c) / self.volume
+
+    def collision_jump_force(self, c):
+        """The part of :meth:`collision_force` from the stochastic collisions' velocity jumps
+        alone, without the returned partner momentum [N m-3]."""
+        return (self._acc(A_PP + c) - self._acc(A_PPK + c)) / self.volume
+
+    @property
+    def collision_force_total(self):
+        """Pipe integral of :meth:`collision_force` (x, y, z) [N] and its standard error from the
+        batch spread of the section totals: (total, stderr), each float64[3]."""
+        o = self._lay.budget + B_PP
+        return self.total[o:o + 3].copy(), np.sqrt(np.maximum(self.var[o:o + 3], 0.0))
+
+    def mirror_symmetrised(self):
+        """This sample averaged with its mirror image z → −z (:mod:`particles.symmetry`):
+        exact in the mean for a mirror-symmetric case, half the variance, symmetric fields to
+        the last bit."""
+        shape = self.mesh.shape
+        return Sample(mesh=self.mesh, spec=self.spec, parcels=self.parcels, batches=self.batches,
+                      total=mirror_average_vector(self.total, shape, "total"),
+                      var=mirror_average_vector(self.var, shape, "var"),
+                      cov=mirror_average_vector(self.cov, shape, "cov"),
+                      wall_time=self.wall_time, passes=self.passes, states=self.states)
+
     def epsilon_source(self, k, epsilon, c_eps3=C_EPS3):
         """S_ε = C_ε3 (ε/k) S_k [W m-3 s-1] with the gas k, ε (nx, nr, nt); C_ε3 = 1.8 (seed)."""
         return c_eps3 * epsilon / k * self.k_source
@@ -329,7 +363,9 @@ class Sample:
     def cell_statistics(self, gas=None, min_visits=10):
         """Per-cell statistics (ncell, NCS) the next pass's collision model uses.
 
-        Number density, mean and rms velocity, mean and rms spin, the mean collision frequency
+        Number density, mean and rms velocity, mean and rms spin, the acceleration that
+        returns the fictitious partners' momentum to the cell's particles (``CS_APP``: minus
+        the collision jumps' net force over the particles' mass in the cell), the mean collision frequency
         (PHYSICS.md §7, for the step limit; with the Sommerfeld correlation R(St), St = τ_p/T_L
         from the cell-mean slip and the gas k, ε when ``gas`` is given), that Stokes number
         (``cell_stokes``, ``CS_ST``; inf without ``gas``, i.e. uncorrelated partners; with
@@ -361,6 +397,10 @@ class Sample:
             fr[i] = mean_collision_frequency(d, d, flat_n[i], flat_s[i], flat_s[i], flat_c[i])
         st[..., CS_F] = freq
         st[..., CS_OK] = ok.astype(float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for c in range(3):  # a = −F_jump/c (PhysicsOptions.partner_momentum = "returned")
+                acc = -(self._acc(A_PP + c) - self._acc(A_PPK + c)) / self._acc(A_WM)
+                st[..., CS_APP + c] = np.where(ok, acc, 0.0)
         return np.ascontiguousarray(st.reshape(nx * nr * nt, NCS))
 
     # ---------------------------------------------------------------- averaging
