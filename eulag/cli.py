@@ -1,15 +1,20 @@
 """The ``eulag`` command line (DESIGN.md, "Command line").
 
-    eulag run CASE.toml [-o out.nc] [--parcels N] [--resume] [--quiet]
-                        [--dask-local N | --scheduler ADDRESS]
+    eulag run CASE.toml|NAME [-o out.nc] [--parcels N] [--resume] [--quiet] [--no-plots]
+                             [--dask-local N | --scheduler ADDRESS]
+    eulag check CASE.toml|NAME
+    eulag cases
     eulag plot out.nc [--x 3.56] [-o figs/]
+    eulag export out.nc out.vts
     eulag study NAME [CASE.toml] [--quick]
     eulag sweep CASES... [-o DIR] [--dask-local N | --scheduler ADDRESS] [--parcels N] [--quiet]
 
 The Dask options (docs/scale_out.md) need the ``dask`` extra (``pip install '.[dask]'``).
 
-Exit status: 0 done, 2 bad input (case file, arguments), 1 anything else; every failure
-prints one line ``eulag: error: <what>`` on stderr and leaves no output file behind.
+Exit status: 0 done, 2 bad input (case file, arguments), 1 anything else (a run that stopped
+unconverged: the failing criterion with its value and threshold); every failure prints one
+line ``eulag: error: <what>`` on stderr and leaves no output file behind (an unconverged run
+writes its dataset with converged = false).
 """
 
 from __future__ import annotations
@@ -50,7 +55,8 @@ def _build_parser() -> argparse.ArgumentParser:
     sub.required = True
 
     run = sub.add_parser("run", help="solve a case and write the NetCDF dataset")
-    run.add_argument("case", metavar="CASE.toml", help="case file")
+    run.add_argument("case", metavar="CASE.toml|NAME", help="case file, or the name of a packaged case "
+                                                         "(eulag cases)")
     run.add_argument("-o", "--output", metavar="OUT.nc",
                      help="output dataset (default: <case name>.nc in the current directory)")
     run.add_argument("--parcels", type=_positive_int, metavar="N",
@@ -63,6 +69,19 @@ def _build_parser() -> argparse.ArgumentParser:
                      help="gas-particle cases: do not write the figures (eulag plot) beside the dataset")
     _add_dask_arguments(run, "the Lagrangian passes' super-batches")
     run.set_defaults(func=cmd_run)
+
+    check = sub.add_parser("check", help="the resolved case with every default, derived numbers and the "
+                                         "saltation check; runs nothing")
+    check.add_argument("case", metavar="CASE.toml|NAME", help="case file or packaged case name")
+    check.set_defaults(func=cmd_check)
+
+    cases = sub.add_parser("cases", help="list the packaged cases (run them by name)")
+    cases.set_defaults(func=cmd_cases)
+
+    export = sub.add_parser("export", help="write a dataset's 3-D pipe as a VTK file for ParaView")
+    export.add_argument("dataset", metavar="OUT.nc", help="dataset written by 'eulag run'")
+    export.add_argument("target", metavar="OUT.vts", help="VTK file to write")
+    export.set_defaults(func=cmd_export)
 
     plot = sub.add_parser("plot", help="figures (PNG) from a dataset: section, profiles, convergence")
     plot.add_argument("dataset", metavar="OUT.nc", help="dataset written by 'eulag run'")
@@ -110,13 +129,9 @@ def _add_dask_arguments(parser, what):
 
 
 def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; allowed: an integer >= 1") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is out of range; allowed: an integer >= 1")
-    return value
+    from eulag.arguments import positive_int
+
+    return positive_int(text)
 
 
 def _not_yet(what: str):
@@ -129,168 +144,84 @@ def _not_yet(what: str):
 # eulag run
 # ---------------------------------------------------------------------------
 
-def _load_case(args) -> Case:
-    case = Case.from_toml(args.case)
-    if args.parcels is not None:
-        n = case.numerics
-        case = case.replace(numerics={"parcels": args.parcels,
-                                      "parcels_start": min(n.parcels_start, args.parcels)})
-    return case
-
-
-def _output_path(args, case: Case) -> Path:
-    out = Path(args.output) if args.output else Path(f"{case.name}.nc")
-    if out.exists() and out.is_dir():
-        raise _Fail(f"-o {out}: is a directory; allowed: a file path", EXIT_BAD_INPUT)
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise _Fail(f"-o {out}: directory {parent} does not exist; allowed: a path in an existing "
-                    "directory", EXIT_BAD_INPUT)
-    if not os.access(parent, os.W_OK):
-        raise _Fail(f"-o {out}: directory {parent} is not writable", EXIT_BAD_INPUT)
-    return out
-
-
-def _finished_run(out: Path, case: Case) -> bool:
-    """True if ``out`` is a converged dataset of this same case (for --resume)."""
-    if not out.is_file():
-        return False
-    import xarray as xr
+def _load_case(args):
+    from eulag import runs
 
     try:
-        with xr.open_dataset(out) as ds:
-            attrs = dict(ds.attrs)
-    except Exception as exc:
-        raise _Fail(f"--resume: {out} exists but cannot be read ({exc})") from None
-    try:
-        same = Case.from_attrs(attrs) == case
-    except CaseError:
-        same = False
-    if not same:
-        raise _Fail(f"--resume: {out} holds a different case; allowed: the output of this case, "
-                    "or run without --resume to overwrite", EXIT_BAD_INPUT)
-    return attrs.get("converged") == "true"
+        return runs.load_case(args.case, parcels=getattr(args, "parcels", None))
+    except runs.RunError as exc:
+        raise _Fail(str(exc), exc.status) from None
+
+
+def _progress_bar(case, total: int):
+    """A tqdm bar on a terminal; line mode (one line per pass) when stderr is not a terminal."""
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        return tqdm(total=total, desc=case.name, unit="pass", file=sys.stderr, dynamic_ncols=True)
+    return None
 
 
 def cmd_run(args) -> int:
-    t_start = time.perf_counter()
+    """Run a case through the run layer (eulag.runs) and print its summary and verdict.
+
+    Exit status 0: converged (or a finished run reused with --resume); 1: failed, or stopped
+    unconverged (the failing criterion with its value and threshold on stderr); 2: bad input."""
+    from eulag import runs
+
+    case = _load_case(args)
     try:
-        case = _load_case(args)
-    except CaseError as exc:
-        raise _Fail(str(exc), EXIT_BAD_INPUT) from None
-    out = _output_path(args, case)
+        out = runs.output_path(args.output, case.name)
+    except runs.RunError as exc:
+        raise _Fail(str(exc), exc.status) from None
     _check_dask(args)
-    if case.particles is not None:
-        return _run_coupled(args, case, out, t_start)
-    if args.resume and _finished_run(out, case):
-        if not args.quiet:
-            print(f"{out}: already a finished run of case {case.name}; nothing to do")
-        return EXIT_OK
-
-    import rans
-    from eulag.output import gas_dataset, write_dataset
-
-    timings = {}
-    t0 = time.perf_counter()
-    mesh = rans.PipeMesh.build(
-        diameter=case.pipe.diameter, length=case.pipe.length, mode=case.pipe.mode,
-        axial_cells=case.numerics.axial_cells, radial_cells=case.numerics.radial_cells,
-        azimuthal_cells=case.numerics.azimuthal_cells,
-        first_cell_yplus=case.numerics.first_cell_yplus, bulk_velocity=case.gas.bulk_velocity,
-        density=case.gas.density, viscosity=case.gas.viscosity)
-    timings["mesh"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    gas = rans.GasProperties(density=case.gas.density, viscosity=case.gas.viscosity)
-    try:
-        field = rans.solve(mesh, gas, bulk_velocity=case.gas.bulk_velocity,
-                           inlet_k=case.gas.inlet_k, inlet_epsilon=case.gas.inlet_epsilon,
-                           sources=None, tol=case.numerics.gas_tolerance,
-                           max_iterations=case.numerics.gas_max_iterations,
-                           progress=not args.quiet and sys.stderr.isatty())
-    except rans.SolverDivergence as exc:
-        raise _Fail(str(exc) or "the gas solver diverged") from None
-    timings["gas_solve"] = time.perf_counter() - t0
-    timings["total"] = time.perf_counter() - t_start
-
-    ds = gas_dataset(case, mesh, field, timings=timings)
-    t0 = time.perf_counter()
-    write_dataset(ds, out)
-    t_write = time.perf_counter() - t0
-
-    if not args.quiet:
-        print(_summary(case, mesh, field, out, timings, t_write))
-    if not field.converged:
-        raise _Fail(f"the gas solver did not converge in {field.iterations} iterations (final "
-                    f"residual {_final(field):.3g} > gas_tolerance {case.numerics.gas_tolerance:g}); "
-                    f"{out} was written with converged = false")
-    return EXIT_OK
-
-
-def _run_coupled(args, case: Case, out: Path, t_start: float) -> int:
-    """A gas-particle case: the coupling loop with a checkpoint beside the output."""
-    ckpt = Path(str(out) + ".checkpoint")
-    if args.resume and not ckpt.exists() and _finished_run(out, case):
-        if not args.quiet:
-            print(f"{out}: already a finished run of case {case.name}; nothing to do")
-        return EXIT_OK
-    if not args.resume and ckpt.exists():
-        ckpt.unlink()  # a fresh run starts from scratch
-
-    import rans
-    from eulag.coupling import CouplingError, CouplingLoop
-    from eulag.output import coupled_dataset, write_dataset
-
-    client, tracker = _dask_tracker(args)  # before the progress bar: it prints the cluster line
-    bar = None
-    if not args.quiet:
-        from tqdm import tqdm
-
-        bar = tqdm(total=case.numerics.max_passes, desc=case.name, unit="pass", file=sys.stderr,
-                   dynamic_ncols=True)
+    coupled = isinstance(case, Case) and case.particles is not None
+    client, tracker = _dask_tracker(args) if coupled else (None, None)
+    bar = None if args.quiet or not coupled else _progress_bar(case, case.numerics.max_passes)
 
     def progress(state):
+        crit = ""
+        loop_line = (f"residual {state.residual:.3g} (< {case.numerics.coupling_tolerance:g}), "
+                     f"-dp/dx {state.pressure_gradient:.4g} Pa/m, {state.parcels} parcels, {state.phase}")
         if bar is not None:
-            bar.update(1)
-            bar.set_postfix_str(f"residual {state.residual:.3g}, -dp/dx {state.pressure_gradient:.4g} Pa/m, "
-                                f"{state.parcels} parcels, {state.phase}")
+            bar.update(state.index - bar.n)
+            bar.set_postfix_str(loop_line + crit)
+        elif not args.quiet:
+            print(f"{case.name}: pass {state.index}: {loop_line}", file=sys.stderr, flush=True)
+
+    def notify(text):
+        if args.quiet:
+            return
+        if bar is not None:
+            bar.write(f"{case.name}: {text}", file=sys.stderr)
+        else:
+            print(f"{case.name}: {text}", file=sys.stderr, flush=True)
 
     try:
-        def notify(text):
-            if bar is not None:
-                bar.write(f"{case.name}: {text}", file=sys.stderr)
-
-        loop = CouplingLoop(case, checkpoint=ckpt, resume=args.resume, progress=progress, tracker=tracker,
-                            notify=notify)
-        if bar is not None and loop.pass_index:
-            bar.update(loop.pass_index)
-        loop.run()
-    except CouplingError as exc:
-        raise _Fail(f"{exc} (checkpoint of the last complete pass: {ckpt})") from None
-    except rans.SolverDivergence as exc:
-        raise _Fail(f"{exc} (checkpoint of the last complete pass: {ckpt})") from None
+        result = runs.execute(case, out, resume=args.resume, progress=progress, notify=notify, tracker=tracker,
+                              plots=coupled and not args.no_plots,
+                              gas_progress=not args.quiet and sys.stderr.isatty())
+    except runs.RunError as exc:
+        raise _Fail(str(exc), exc.status) from None
     finally:
         if bar is not None:
             bar.close()
         _close_dask(client)
-    loop.timings["total"] = time.perf_counter() - t_start
-    ds = coupled_dataset(loop)
-    write_dataset(ds, out)
-    figures = []
-    if not args.no_plots:
-        from eulag import plots
-
-        try:
-            figures = plots.plot_all(out)
-        except Exception as exc:  # the dataset is written; a figure failing must not hide it
-            print(f"eulag: figures not written ({exc}); the dataset {out} is complete", file=sys.stderr)
+    if result.reused:
+        if not args.quiet:
+            print(f"{out}: already a finished run of case {case.name}; nothing to do")
+        return EXIT_OK
     if not args.quiet:
-        print(_coupled_summary(case, loop, ds, out))
-        if figures:
-            print(f"  figures      {Path(figures[0]).parent}/ ({len(figures)} PNG)")
-    if not loop.converged:
-        raise _Fail(f"the coupling did not converge in {len(loop.history.residual)} passes (final residual "
-                    f"{loop.history.residual[-1]:.3g}); {out} was written with converged = false")
+        if result.loop is not None:
+            print(_coupled_summary(case, result.loop, result.dataset, out))
+        elif result.field is not None:
+            print(_summary(case, result.mesh, result.field, out, result.timings, result.timings.get("write", 0.0)))
+        else:
+            print(f"eulag {eulag.__version__}: case {case.name} ({case.model}): {result.stop_reason}; written {out}")
+        if result.figures:
+            print(f"  figures      {Path(result.figures[0]).parent}/ ({len(result.figures)} PNG)")
+    if not result.converged:
+        raise _Fail(f"{result.stop_reason}; {out} was written with converged = false")
     return EXIT_OK
 
 
@@ -371,6 +302,8 @@ def _coupled_summary(case, loop, ds, out) -> str:
         f"Re = {case.reynolds_number:.4g}",
         f"  passes       {len(h.residual)} ({'converged' if loop.converged else 'NOT converged'}), "
         f"final residual {h.residual[-1]:.3g}, relaxation {h.relaxation[-1]:g}",
+        f"  verdict      {loop.stop_reason}",
+        *_criteria_lines(loop),
         f"  -dp/dx       {float(np.mean(ds.pressure_gradient)):.4g} Pa/m (single-phase "
         f"{float(np.mean(ds.pressure_gradient_single_phase)):.4g}); dp ratio "
         f"{float(ds.solids_pressure_drop_ratio):.4g}, lambda_Z {float(ds.additional_pressure_loss_coefficient):.4g}",
@@ -385,6 +318,11 @@ def _coupled_summary(case, loop, ds, out) -> str:
     return "\n".join(lines)
 
 
+def _criteria_lines(loop) -> list[str]:
+    """Each convergence criterion as the loop judged it last: value, threshold, met or not."""
+    return [f"    {'ok ' if c.met else 'NO '} {c.line()}" for c in loop.criteria]
+
+
 def _collision_momentum_line(case, h) -> list[str]:
     """The net momentum the stochastic collisions gave the particles (real pairs give none)."""
     from eulag.coupling import COLLISION_MOMENTUM_TOL, recent_collision_momentum
@@ -395,7 +333,7 @@ def _collision_momentum_line(case, h) -> list[str]:
     flag = (f"; WARNING: more than {100 * COLLISION_MOMENTUM_TOL:g} %" if abs(cm) >= COLLISION_MOMENTUM_TOL
             else "")
     return [f"  collisions   net momentum {100 * cm:+.2g} % of the particle inflow (final passes; real "
-            f"collision pairs give none, README \"Coupling\" 6{flag})"]
+            f"collision pairs give none{flag})"]
 
 
 def _collision_force_line(case, ds) -> list[str]:
@@ -441,6 +379,53 @@ def _summary(case, mesh, field, out, timings, t_write) -> str:
         f"  written      {out}",
     ]
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------
+# eulag check, cases, export
+# ---------------------------------------------------------------------------
+
+def cmd_check(args) -> int:
+    """The resolved case and its derived numbers (eulag.check); runs nothing."""
+    from eulag import check
+
+    args.parcels = None
+    case = _load_case(args)
+    if not isinstance(case, Case):
+        print(f"case {case.name}: model {case.model} (validated)")
+        return EXIT_OK
+    print(check.check_report(case))
+    return EXIT_OK
+
+
+def cmd_cases(args) -> int:
+    """The packaged cases by name, with their description."""
+    from eulag import runs
+
+    for name, path in runs.packaged_cases().items():
+        try:
+            case = runs.load_case(path)
+            text = getattr(case, "description", None) or getattr(case, "data", {}).get("description", "")
+        except runs.RunError as exc:
+            text = f"(invalid: {exc})"
+        first = " ".join(str(text).split())[:90]
+        print(f"{name:28s} {path.relative_to(runs.CASES_DIR)}  {first}")
+    return EXIT_OK
+
+
+def cmd_export(args) -> int:
+    """A dataset's cell fields on the 3-D pipe as a VTK structured grid (eulag.export)."""
+    from eulag import export
+
+    src = Path(args.dataset)
+    if not src.is_file():
+        raise _Fail(f"{src}: no such dataset file", EXIT_BAD_INPUT)
+    try:
+        written = export.export_vts(src, Path(args.target))
+    except ValueError as exc:
+        raise _Fail(str(exc), EXIT_BAD_INPUT) from None
+    print(written if written is not None else args.target)
+    return EXIT_OK
 
 
 # ---------------------------------------------------------------------------

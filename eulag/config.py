@@ -662,7 +662,7 @@ _SECTIONS: dict[str, type[_Section]] = {
     "physics": PhysicsConfig,
     "numerics": NumericsConfig,
 }
-_TOP_KEYS = ["name", "description", *_SECTIONS]
+_TOP_KEYS = ["name", "description", "model", *_SECTIONS]
 
 #: Case keys added after run records and checkpoints began (c4a33a1), each with the value that
 #: does what eulag did before the key existed. A stored case without the key is the same case
@@ -751,6 +751,9 @@ class Case:
         for key, value in d.items():
             if key not in _TOP_KEYS:
                 raise _unknown(key, value, _TOP_KEYS, "the top level")
+        if d.get("model", "euler-lagrange") != "euler-lagrange":
+            raise CaseError(f"model = {_fmt(d['model'])}: not a case of the Euler-Lagrange model; allowed "
+                            "here: euler-lagrange (eulag.runs.load_case reads the other models' cases)")
         kwargs: dict[str, Any] = {}
         if "name" in d:
             kwargs["name"] = d["name"]

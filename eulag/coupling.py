@@ -3,7 +3,7 @@
     case = Case.from_toml("cases/tsuji_morikawa_200um.toml")
     for state in CouplingLoop(case):          # one PassState per Lagrangian pass
         print(state.index, state.residual)
-    ds = run(case, "out.nc")                   # the whole run, written and returned
+    ds = eulag.runs.run(case, "out.nc")        # the whole run, written and returned
 
 Cycle (the reference paper's):
 
@@ -113,10 +113,10 @@ import numpy as np
 
 import particles
 import rans
-from particles.layout import CS_ST, NCS
+from particles.layout import CS_APP, CS_ST, NCS
 from collisions import InterparticleOptions, WallOptions
 
-__all__ = ["CouplingLoop", "PassState", "CouplingError", "run", "physics_options", "particle_spec",
+__all__ = ["CouplingLoop", "PassState", "CouplingError", "Criterion", "CRITERIA", "convergence_criteria", "physics_options", "particle_spec",
            "build_mesh", "CHECKPOINT_VERSION"]
 
 CHECKPOINT_VERSION = 3
@@ -274,6 +274,58 @@ def collision_momentum_settled(history) -> bool:
     return collision_momentum_to_come(history) < COLLISION_MOMENTUM_TOL
 
 
+@dataclass(frozen=True)
+class Criterion:
+    """One convergence criterion of the loop as judged after a pass: ``value`` must be below
+    ``threshold`` (``met``); ``what`` says in words what is compared."""
+
+    name: str
+    value: float
+    threshold: float
+    met: bool
+    what: str
+
+    def line(self) -> str:
+        rel = "<" if self.met else ">="
+        return f"{self.name} {self.value:.3g} {rel} {self.threshold:g} ({self.what})"
+
+
+#: The criteria in the order the loop judges them (``convergence_criteria``).
+CRITERIA = ("gas_solve", "residual", "pressure_gradient_to_come", "mass_balance", "collision_momentum_to_come")
+
+
+def convergence_criteria(history, gas_converged, tolerance, collisions=True) -> list[Criterion]:
+    """Each convergence criterion of the coupling loop after the last pass of ``history``
+    (a ``_History``), with its value and threshold (module docstring, "Convergence").
+
+    gas_converged : whether the last gas solve converged; tolerance : numerics.coupling_tolerance;
+    collisions : whether inter-particle collisions run (else their momentum is not judged).
+    The loop has converged when every criterion is met."""
+    h = history
+    crit = [Criterion("gas_solve", 0.0 if gas_converged else 1.0, 0.5, bool(gas_converged),
+                      "stations of the last gas solve not converged: 0 = none")]
+    res = float(h.residual[-1]) if h.residual else math.nan
+    enough = len(h.residual) >= _INTEGRAL_PASSES + 1
+    crit.append(Criterion("residual", res if enough else math.inf, tolerance,
+                          bool(enough and res < tolerance),
+                          "RMS change of the relaxed sources over their noise"))
+    if len(h.pressure_gradient) >= 2:
+        ahead = pressure_gradient_to_come(h.pressure_gradient, h.relaxation)[1]
+    else:
+        ahead = math.inf
+    crit.append(Criterion("pressure_gradient_to_come", ahead, _INTEGRAL_TOL, bool(ahead < _INTEGRAL_TOL),
+                          "change of -dp/dx still to come / -dp/dx"))
+    mb = max(h.mass_balance[-_INTEGRAL_PASSES:]) if h.mass_balance else math.inf
+    crit.append(Criterion("mass_balance", mb, _INTEGRAL_TOL, bool(mb < _INTEGRAL_TOL),
+                          f"|in - out - stuck| / in, largest of the last {_INTEGRAL_PASSES} passes"))
+    if collisions:
+        cm = collision_momentum_to_come(h.collision_momentum)
+        crit.append(Criterion("collision_momentum_to_come", cm, COLLISION_MOMENTUM_TOL,
+                              bool(cm < COLLISION_MOMENTUM_TOL),
+                              "change still to come of the collisions' net momentum / inflow"))
+    return crit
+
+
 class CouplingError(RuntimeError):
     """The coupling loop cannot go on; the message names the pass and the quantity."""
 
@@ -355,6 +407,13 @@ class _History:
     gas_relaxation: list = field(default_factory=list)  # implicit k-eps relaxation the gas solve needed
     # net axial momentum the inter-particle collisions gave the particles / their momentum inflow
     collision_momentum: list = field(default_factory=list)
+    # each convergence criterion's value after the pass (NaN in the final passes, which are
+    # not judged again): convergence_criteria, CRITERIA
+    criterion_gas_solve: list = field(default_factory=list)
+    criterion_residual: list = field(default_factory=list)
+    criterion_pressure_gradient_to_come: list = field(default_factory=list)
+    criterion_mass_balance: list = field(default_factory=list)
+    criterion_collision_momentum_to_come: list = field(default_factory=list)
 
     def arrays(self):
         return {k: np.asarray(v, dtype=np.float64) for k, v in self.__dict__.items()}
@@ -467,6 +526,8 @@ class CouplingLoop:
         self.phase = "early"
         self.final_left = case.numerics.average_passes
         self.converged = False
+        self.converged_at = None  # the pass after which every criterion was met
+        self.criteria = []  # the criteria as judged after the last early pass (Criterion)
         self.finished = False
         self.gas = None
         self.gas0 = None
@@ -656,7 +717,14 @@ class CouplingLoop:
                 self.converged = (self.converged or not self.two_way) and bool(self.gas.converged)
         elif self._converged_now():
             self.converged = True
+            self.converged_at = m
             self.phase = "final"
+        if self.phase == "early" or m == self.converged_at:
+            for c in self.criteria:
+                getattr(h, "criterion_" + c.name).append(c.value)
+        else:
+            for name in CRITERIA:
+                getattr(h, "criterion_" + name).append(math.nan)
         state = PassState(index=m, parcels=parcels_m, relaxation=h.relaxation[-1], residual=residual,
                           pressure_gradient=dpdx, phase=self.phase, converged=self.converged and self.finished,
                           finished=self.finished, counts=counts,
@@ -763,17 +831,28 @@ class CouplingLoop:
         return new, residual
 
     def _converged_now(self):
-        h = self.history
-        n = self.case.numerics
-        if not self.gas.converged:
-            return False
-        if len(h.residual) < _INTEGRAL_PASSES + 1 or not h.residual[-1] < n.coupling_tolerance:
-            return False
-        if pressure_gradient_to_come(h.pressure_gradient, h.relaxation)[1] > _INTEGRAL_TOL:
-            return False
-        if not max(h.mass_balance[-_INTEGRAL_PASSES:]) < _INTEGRAL_TOL:
-            return False
-        return collision_momentum_settled(h.collision_momentum)
+        """Judge every criterion after this pass (kept as ``self.criteria``, the verdict a run
+        that ends unconverged reports) and return whether all are met."""
+        self.criteria = convergence_criteria(self.history, bool(self.gas.converged),
+                                             self.case.numerics.coupling_tolerance,
+                                             collisions=self.physics.inter_particle_collisions)
+        return all(c.met for c in self.criteria)
+
+    @property
+    def stop_reason(self) -> str:
+        """Why the loop stopped (or has not yet): one line for the user and the dataset."""
+        if not self.finished:
+            return "running"
+        if not self.two_way:
+            return "one-way coupling: the final passes in the single-phase gas"
+        if self.converged:
+            return (f"converged after pass {self.converged_at}; then {self.window_n} final passes "
+                    "averaged")
+        failed = [c.line() for c in self.criteria if not c.met]
+        if not failed:
+            failed = ["the gas solve of a final pass did not converge"]
+        return (f"not converged when max_passes = {self.case.numerics.max_passes} was reached: "
+                + "; ".join(failed))
 
     def _add_to_window(self, s):
         if self.window is None:
@@ -833,6 +912,7 @@ class CouplingLoop:
                 "finished": self.finished, "alpha": self.alpha, "alpha_changed_at": self.alpha_changed_at,
                 "drift_told_at": self.drift_told_at,
                 "alpha_cap": self.alpha_cap, "recovered": self.recovered,
+                "converged_at": self.converged_at, "criteria": [c.__dict__ for c in self.criteria],
                 "window_n": self.window_n,
                 "window_batches": self.window_batches, "window_parcels": self.window_parcels,
                 "timings": self.timings}
@@ -860,9 +940,13 @@ class CouplingLoop:
             self.sources = {k[4:]: data[k] for k in data if k.startswith("src_")}
         self.stats = data.get("stats")
         if self.stats is not None:
-            if self.stats.shape[1] == NCS - 1:  # a checkpoint from before the last column, CS_ST
+            if self.stats.shape[1] == CS_ST:  # a checkpoint from before the Stokes-number column
                 st = particles.cell_stokes(self.stats, self.gas, self.spec)
                 self.stats = np.ascontiguousarray(np.column_stack([self.stats, st]))
+            if self.stats.shape[1] == CS_APP:  # ... and before the returned partner momentum:
+                # nothing returned yet (partner_momentum = "discarded" never reads the columns)
+                pad = np.zeros((self.stats.shape[0], NCS - CS_APP))
+                self.stats = np.ascontiguousarray(np.column_stack([self.stats, pad]))
             if self.stats.shape[1] != NCS:
                 raise CouplingError(f"{self.checkpoint}: its collision statistics hold {self.stats.shape[1]} "
                                     f"values per cell, this eulag's tracker reads {NCS}; remove it or run "
@@ -891,6 +975,8 @@ class CouplingLoop:
         # checkpoints from before the recovery rule: no recovery (an earlier α may have failed)
         self.alpha_cap = meta.get("alpha_cap", self.alpha)
         self.recovered = meta.get("recovered", False)
+        self.converged_at = meta.get("converged_at")
+        self.criteria = [Criterion(**c) for c in meta.get("criteria", [])]
         self.drift_told_at = meta.get("drift_told_at", -1)
         self.timings.update(meta["timings"])
 
@@ -956,23 +1042,3 @@ def _atomic_savez(path, arrays):
             np.savez(fh, **arrays)
 
     atomic_write(path, write)
-
-
-def run(case, out=None, *, resume=False, parcels=None, progress=None, tracker=None, notify=None):
-    """Run ``case`` to the end and return its dataset; write it to ``out`` if given.
-
-    The checkpoint lives beside the output (``out.nc.checkpoint``); ``tracker``: see
-    :class:`CouplingLoop`.
-    """
-    from .output import coupled_dataset, write_dataset
-
-    t0 = time.perf_counter()
-    ckpt = Path(str(out) + ".checkpoint") if out is not None else None
-    loop = CouplingLoop(case, checkpoint=ckpt, resume=resume, parcels=parcels, progress=progress,
-                        tracker=tracker, notify=notify)
-    loop.run()
-    loop.timings["total"] = loop.timings.get("total", 0.0) + (time.perf_counter() - t0)
-    ds = coupled_dataset(loop)
-    if out is not None:
-        write_dataset(ds, out)
-    return ds

@@ -2,7 +2,7 @@
 
     from eulag.distributed import DaskTracker, dask_client
     with dask_client(local_workers=2) as client:          # or scheduler="tcp://host:8786"
-        ds = eulag.coupling.run(case, "out.nc", tracker=DaskTracker(client))
+        ds = eulag.runs.run(case, "out.nc", tracker=DaskTracker(client))
 
 A pass is split into the super-batches fixed by the case (``particles.batch_plan``: they
 depend on the parcel count and ``numerics.batch_size`` / ``batches_per_superbatch``, never on

@@ -306,6 +306,26 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
         "particles: the stochastic partners conserve momentum only on average)")
     ds["pressure_gradient_history"] = _var(it, h["pressure_gradient"], "Pa m-1",
                                            "pipe-mean -dp/dx after the pass's gas solve")
+    # the loop's own verdict: each convergence criterion after each judged pass, and the last
+    # judgement (eulag.coupling.convergence_criteria)
+    from eulag.coupling import CRITERIA
+
+    ds = ds.assign_coords(criterion=xr.Variable("criterion", np.array(CRITERIA, dtype=object),
+                                                {"long_name": "convergence criterion of the coupling loop"}))
+    ds["criterion_history"] = _var(
+        ("iteration", "criterion"), np.stack([h["criterion_" + c] for c in CRITERIA], axis=1), "1",
+        "value of each convergence criterion after the pass (NaN: final pass, not judged)")
+    judged = {c.name: c for c in loop.criteria}
+    ds["criterion_value"] = _var("criterion", [judged[c].value if c in judged else np.nan for c in CRITERIA],
+                                 "1", "value of each convergence criterion at the last judged pass")
+    ds["criterion_threshold"] = _var("criterion", [judged[c].threshold if c in judged else np.nan
+                                                   for c in CRITERIA],
+                                     "1", "threshold each criterion's value must stay below")
+    ds["criterion_met"] = xr.Variable("criterion", np.array([1 if c in judged and judged[c].met else 0
+                                                             for c in CRITERIA], dtype=np.int8),
+                                      {"long_name": "criterion met at the last judged pass",
+                                       "flag_values": np.array([0, 1], dtype=np.int8),
+                                       "flag_meanings": "not_met met"})
     ds["time_gas_solve_pass"] = _var(it, h["time_gas"], "s", "wall-clock time of the pass's gas solve")
     ds["time_lagrangian_pass"] = _var(it, h["time_particles"], "s", "wall-clock time of the Lagrangian pass")
 
@@ -338,6 +358,7 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
         "solids_pressure_drop_ratio": ratio,
         "additional_pressure_loss_coefficient": lam_z,
         "relaxation_final": float(h["relaxation"][-1]),
+        "stop_reason": loop.stop_reason,
     })
     if attrs:
         ds.attrs.update(attrs)

@@ -7,7 +7,7 @@
     eulag study stability                 [--quick] [-o DIR] [--resume] [--report] [--quiet] [--parcels N]
                                           [--only ...]
 
-Each study runs its cases through :func:`eulag.coupling.run` (one dataset ``<run>.nc`` per
+Each study runs its cases through :func:`eulag.runs.execute` (one dataset ``<run>.nc`` per
 case in the output folder, default ``results/<study>/``), then writes a generated table
 (``README.md`` and ``<study>.csv``; the machine, the eulag commit and the wall times are
 stated in it) and its figures (PNG). Nothing in these files is edited by hand.
@@ -34,7 +34,7 @@ stated in it) and its figures (PNG). Nothing in these files is edited by hand.
 * ``--quick``: every run on a tiny grid with a few hundred parcels and two passes, so that
   a study finishes in well under a minute on a 2-core machine. Quick numbers check the
   machinery, they are not results.
-* A run that fails (:class:`eulag.coupling.CouplingError`, a diverging gas solve) does not
+* A run that fails (:class:`eulag.runs.RunError`: the coupling stopped, a diverging gas solve) does not
   stop the study: its row says "failed: <the diagnosis>". A case the case validation
   rejects is reported as "rejected: <why>".
 * Run times exclude the one-off JIT compilation of the particle kernels: before the timed
@@ -138,7 +138,7 @@ def _common(p, name: str, only: str | None = None) -> None:
 
 
 def _positive_int(text: str) -> int:
-    from .cli import _positive_int as positive_int
+    from .arguments import positive_int
 
     return positive_int(text)
 
@@ -299,7 +299,7 @@ def _warm_up(case: Case, args=None) -> None:
     tiny = case.replace(numerics=_WARMUP_NUMERICS)
     t0 = time.perf_counter()
     try:
-        from eulag.coupling import run
+        from eulag.runs import run
 
         run(tiny)
     except Exception:  # noqa: BLE001 - only compiles; the timed run reports any failure
@@ -317,8 +317,7 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
     ``extract(ds, record)`` returns the study's metrics of a finished dataset; the per-run
     figures are drawn there too.
     """
-    import rans
-    from eulag.coupling import CouplingError, run
+    from eulag import runs
 
     out = outdir / f"{name}.nc"
     ckpt = Path(str(out) + ".checkpoint")
@@ -375,9 +374,9 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
         _log(args, f"  {label}: running ({_describe_numerics(case)})")
         t0 = time.perf_counter()
         try:
-            ds = run(case, out, resume=resume, progress=_progress_printer(args, name, history),
-                     notify=lambda text: _log(args, f"    {name}: {text}"))
-        except (CouplingError, rans.SolverDivergence, FloatingPointError) as exc:
+            ds = runs.execute(case, out, resume=resume, progress=_progress_printer(args, name, history),
+                              notify=lambda text: _log(args, f"    {name}: {text}")).dataset
+        except (runs.RunError, FloatingPointError) as exc:
             kind = "failed"
             msg = " ".join(f"{exc}".split()) or type(exc).__name__
         except Exception as exc:  # noqa: BLE001 - recorded, the study goes on (exit status 1)
@@ -529,7 +528,7 @@ def _record_from_dataset(name, case, out, ds) -> RunRecord:
     res = np.asarray(ds["residual"].values, dtype=float) if "residual" in ds else np.array([math.nan])
     relax = np.asarray(ds["relaxation"].values, dtype=float) if "relaxation" in ds else np.array([math.nan])
     passes = int(ds.attrs.get("coupling_passes", res.size))
-    msg = "" if converged else _why_not_converged(ds, case)
+    msg = "" if converged else (ds.attrs.get("stop_reason") or _why_not_converged(ds, case))
     return RunRecord(name, case, out, "converged" if converged else "not converged", msg, run_time(ds),
                      passes, float(res[-1]) if res.size else math.nan,
                      float(relax[-1]) if relax.size else math.nan,
@@ -593,7 +592,8 @@ def _gas_not_converged(ds, tol: float) -> str:
 
 
 def _why_not_converged(ds, case: Case) -> str:
-    """The first convergence criterion (eulag.coupling) a finished, unconverged run misses."""
+    """The first convergence criterion (eulag.coupling) a finished, unconverged run misses,
+    for datasets written without the loop's own verdict (``stop_reason``, ``criterion_*``)."""
     n = case.numerics
     if ds.attrs.get("gas_converged") == "false":
         return _gas_not_converged(ds, n.gas_tolerance)

@@ -76,7 +76,7 @@ def plan_sweep(paths, output_dir=".", parcels=None):
 
     Raises :class:`SweepInputError` (nothing run, nothing written except ``output_dir``).
     """
-    from eulag.cli import _Fail, _finished_run
+    from eulag.runs import RunError, finished_run
 
     if not paths:
         raise SweepInputError("no case files given")
@@ -102,8 +102,8 @@ def plan_sweep(paths, output_dir=".", parcels=None):
         if e.output.exists() and e.output.is_dir():
             raise SweepInputError(f"{e.output}: is a directory; the output of case {e.name} must be a file")
         try:
-            e.finished = _finished_run(e.output, e.case) or _ended_unconverged(e.output)
-        except _Fail as exc:
+            e.finished = finished_run(e.output, e.case) or _ended_unconverged(e.output)
+        except RunError as exc:
             msg = str(exc).replace("--resume: ", "")
             raise SweepInputError(f"case {e.name} ({e.path}): {msg}") from None
         if not e.finished:
@@ -138,7 +138,7 @@ def _checkpoint_problem(ckpt, case):
 
 
 def _ended_unconverged(out):
-    """A dataset of the same case (checked by ``_finished_run`` first) that ended with
+    """A dataset of the same case (checked by ``runs.finished_run`` first) that ended with
     converged = false: its run used all its passes; running it again gives the same."""
     if not out.is_file():
         return False
@@ -194,43 +194,23 @@ def _read_row(entry, status):
 def run_case(case, output, numba_threads=None):
     """Run one case to the end (resuming from its checkpoint) and write ``output``.
 
-    The task of a sweep; returns its summary row.  A failure of the case is returned as a
-    row with status "failed" and a one-line error (it does not fail the task, so Dask does
-    not retry a case that fails deterministically).
+    The task of a sweep (through the run layer, :func:`eulag.runs.execute`); returns its
+    summary row.  A failure of the case is returned as a row with status "failed" and a
+    one-line error (it does not fail the task, so Dask does not retry a case that fails
+    deterministically).
     """
     t0 = time.perf_counter()
     output = Path(output)
     try:
+        from eulag import runs
         from eulag.distributed import set_numba_threads
 
         set_numba_threads(numba_threads)
-        if case.particles is not None:
-            from eulag.coupling import run
-
-            ds = run(case, output, resume=True)
-        else:
-            ds = _run_single_phase(case, output, t0)
+        ds = runs.execute(case, output, resume=True).dataset
     except Exception as exc:  # noqa: BLE001 - reported in the summary, one line
         text = " ".join(f"{type(exc).__name__}: {exc}".split())
         return summary_row(case.name, None, output, FAILED, time.perf_counter() - t0, error=text)
     return summary_row(case.name, ds, output, RAN, time.perf_counter() - t0)
-
-
-def _run_single_phase(case, output, t0):
-    import rans
-    from eulag.coupling import build_mesh
-    from eulag.output import gas_dataset, write_dataset
-
-    mesh = build_mesh(case)
-    gas = rans.GasProperties(density=case.gas.density, viscosity=case.gas.viscosity)
-    t1 = time.perf_counter()
-    field = rans.solve(mesh, gas, bulk_velocity=case.gas.bulk_velocity, inlet_k=case.gas.inlet_k,
-                       inlet_epsilon=case.gas.inlet_epsilon, sources=None, tol=case.numerics.gas_tolerance,
-                       max_iterations=case.numerics.gas_max_iterations)
-    timings = {"gas_solve": time.perf_counter() - t1, "total": time.perf_counter() - t0}
-    ds = gas_dataset(case, mesh, field, timings=timings)
-    write_dataset(ds, output)
-    return ds
 
 
 # ---------------------------------------------------------------------------- the sweep

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from eulag.config import Case
-from eulag.coupling import CouplingLoop, run
+from eulag.coupling import CouplingLoop
+from eulag.runs import run
 
 SMALL = {
     "name": "small_coupled",

@@ -21,7 +21,8 @@ import particles  # noqa: E402
 from eulag import cli, sweep  # noqa: E402
 from eulag import coupling  # noqa: E402
 from eulag.config import Case  # noqa: E402
-from eulag.coupling import CouplingError, CouplingLoop, run  # noqa: E402
+from eulag.coupling import CouplingError, CouplingLoop  # noqa: E402
+from eulag.runs import run  # noqa: E402
 from eulag.distributed import DaskConnectionError, DaskTracker, dask_client  # noqa: E402
 
 from .test_coupling import SMALL, data_vars_equal, small_case  # noqa: E402

@@ -435,15 +435,15 @@ def test_stability_quick_all(tmp_path):
 
 
 def test_a_failing_run_is_recorded_with_its_diagnosis(tmp_path, monkeypatch):
-    import eulag.coupling as coupling
+    import eulag.runs as runs
 
     calls = []
 
     def failing_run(case, out=None, **kw):
         calls.append(case.name)
-        raise coupling.CouplingError("pass 2: k < 0 in cell (3, 4, 7) after the gas solve")
+        raise runs.RunError("pass 2: k < 0 in cell (3, 4, 7) after the gas solve")
 
-    monkeypatch.setattr(coupling, "run", failing_run)
+    monkeypatch.setattr(runs, "execute", failing_run)
     case = studies._quick(Case.from_toml(BASE))
     args = SimpleNamespace(resume=False, quiet=True)
     # a record of an earlier success must not outlive the failed re-run

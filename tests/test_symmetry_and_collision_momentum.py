@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from eulag.coupling import CouplingLoop, run
+from eulag.coupling import CouplingLoop
+from eulag.runs import run
 from particles import ParticleSpec, PhysicsOptions, track
 from particles.layout import ACC_PARITY, A_MU, A_NW, A_PP, A_PPK, A_WM, NACC
 from particles.symmetry import mirror_average_vector, mirror_cell_array, mirror_sectors

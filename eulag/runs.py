@@ -1,0 +1,323 @@
+"""The run layer: case → mesh → run → dataset → figures, the same for every front-end.
+
+``eulag run``, ``eulag sweep``, the studies and the Python API (``eulag.run``) all go through
+:func:`execute`; nothing else in eulag builds a mesh, starts a loop or writes a result.
+
+    case = load_case("tsuji_morikawa_200um")          # a file path or a packaged case's name
+    result = execute(case, "out.nc", resume=True)      # RunResult: dataset, verdict, figures
+    result.dataset, result.converged, result.stop_reason
+
+Which model runs is the case file's top-level ``model`` key: ``"euler-lagrange"`` (the
+default: the steady k-ε gas solver alone when the case has no ``[particles]``, else the
+four-way coupling loop of :mod:`eulag.coupling`), ``"dem-darcy"`` (:mod:`eulag.slug`) or
+``"two-fluid"`` (:mod:`eulag.two_fluid`).
+
+Resume rules (one place for all front-ends): a coupled run keeps its checkpoint beside the
+output (``out.nc.checkpoint``); ``resume=True`` continues from it, and returns an output that
+already holds a finished run of the same case without computing anything; ``resume=False``
+starts afresh and removes an earlier checkpoint.  An output of a *different* case is never
+taken for this one (:class:`BadInput`).  Errors are :class:`RunError` (exit status 1) or
+:class:`BadInput` (exit status 2) with a one-line message.
+"""
+
+from __future__ import annotations
+
+import time
+import tomllib
+from dataclasses import dataclass
+from dataclasses import field as _field
+from pathlib import Path
+from typing import Any, Callable
+
+from eulag.config import CASES_DIR, Case, CaseError
+
+__all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
+           "output_path", "finished_run", "execute", "run"]
+
+#: The models a case can name with its top-level ``model`` key, and the module that runs each.
+MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
+#: The dense-phase models' entry points: (module, validate(dict), run(dict, out, resume=, progress=)).
+_DENSE = {"dem-darcy": ("eulag.slug", "validate_slug_case", "run_slug"),
+          "two-fluid": ("eulag.two_fluid", "validate_two_fluid_case", "run_two_fluid")}
+
+EXIT_FAILURE, EXIT_BAD_INPUT = 1, 2
+
+
+class RunError(Exception):
+    """A run that cannot be done or did not finish; ``status`` is the CLI's exit status."""
+
+    status = EXIT_FAILURE
+
+    def __init__(self, message: str, status: int | None = None):
+        super().__init__(message)
+        if status is not None:
+            self.status = status
+
+
+class BadInput(RunError):
+    """Bad input (case file, output path, a different case where this one was expected)."""
+
+    status = EXIT_BAD_INPUT
+
+
+@dataclass(frozen=True)
+class ModelCase:
+    """A validated case of a dense-phase model: its ``model``, name, the parsed TOML tables
+    (validated by the model's module) and the file it came from."""
+
+    model: str
+    name: str
+    data: dict
+    source: Path | None = None
+
+
+@dataclass
+class RunResult:
+    """What a finished run gives: its dataset and the loop's verdict.
+
+    dataset : xarray.Dataset (written to ``out`` when an output was given); converged;
+    stop_reason : the loop's one-line verdict (which criterion failed, by how much);
+    reused : the output already held this finished run (``resume``); figures : PNG paths;
+    loop / field : the coupling loop or the single-phase gas field (None when reused);
+    timings : wall-clock seconds of the run's stages.
+    """
+
+    case: Any
+    out: Path | None
+    dataset: Any
+    converged: bool
+    stop_reason: str
+    reused: bool = False
+    figures: list = _field(default_factory=list)
+    loop: Any = None
+    field: Any = None
+    mesh: Any = None
+    timings: dict = _field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------- cases
+def packaged_cases() -> dict[str, Path]:
+    """The case files shipped with eulag, by name (file stem), e.g. ``tsuji_morikawa_200um``."""
+    return {p.stem: p for p in sorted(CASES_DIR.rglob("*.toml"))}
+
+
+def case_path(spec: str | Path) -> Path:
+    """A case file from a path or, when no such file exists, a packaged case's name."""
+    p = Path(spec)
+    if p.is_file() or p.suffix == ".toml" or p.parent != Path("."):
+        return p
+    known = packaged_cases()
+    if str(spec) in known:
+        return known[str(spec)]
+    raise BadInput(f"{spec}: no such case file or packaged case; allowed: a .toml path or one of "
+                   f"{', '.join(known)} (eulag cases)")
+
+
+def model_of(path: Path) -> str:
+    """The ``model`` key of a case file (``"euler-lagrange"`` when absent)."""
+    try:
+        data = tomllib.loads(Path(path).read_bytes().decode("utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return "euler-lagrange"  # Case.from_toml gives the one-line error
+    model = data.get("model", "euler-lagrange")
+    if model not in MODELS:
+        raise BadInput(f"model = {model!r}: unknown model; allowed: {', '.join(MODELS)}")
+    return model
+
+
+def load_case(spec: str | Path, *, parcels: int | None = None):
+    """Read and validate a case: an :class:`eulag.config.Case` for the Euler–Lagrange model, or
+    the dense-phase models' validated case (their modules define it).  ``parcels`` overrides
+    ``numerics.parcels`` (and caps ``numerics.parcels_start``) of an Euler–Lagrange case."""
+    path = case_path(spec)
+    model = model_of(path) if path.is_file() else "euler-lagrange"
+    if model != "euler-lagrange":
+        module_name, validate, _ = _DENSE[model]
+        data = tomllib.loads(path.read_bytes().decode("utf-8"))
+        try:
+            getattr(_model_module(model), validate)(data)
+        except (CaseError, ValueError, KeyError, TypeError) as exc:
+            raise BadInput(" ".join(str(exc).split())) from None
+        return ModelCase(model, str(data.get("name", path.stem)), data, path)
+    try:
+        case = Case.from_toml(path)
+    except CaseError as exc:
+        raise BadInput(str(exc)) from None
+    if parcels is not None:
+        n = case.numerics
+        case = case.replace(numerics={"parcels": parcels, "parcels_start": min(n.parcels_start, parcels)})
+    return case
+
+
+def _model_module(model: str):
+    import importlib
+
+    try:
+        return importlib.import_module(MODELS[model])
+    except ImportError as exc:
+        raise BadInput(f"model = {model!r}: not available in this installation ({exc})") from None
+
+
+# ---------------------------------------------------------------------------- outputs
+def output_path(out: str | Path | None, name: str) -> Path:
+    """The output file (``<name>.nc`` by default), checked to be writable before any work."""
+    import os
+
+    out = Path(out) if out else Path(f"{name}.nc")
+    if out.exists() and out.is_dir():
+        raise BadInput(f"-o {out}: is a directory; allowed: a file path")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        raise BadInput(f"-o {out}: directory {parent} does not exist; allowed: a path in an existing directory")
+    if not os.access(parent, os.W_OK):
+        raise BadInput(f"-o {out}: directory {parent} is not writable")
+    return out
+
+
+def finished_run(out: Path, case: Case) -> bool:
+    """True if ``out`` holds a converged dataset of this same case; False if there is none or
+    it ended unconverged; :class:`BadInput` if it holds another case (never overwritten by a
+    resume)."""
+    out = Path(out)
+    if not out.is_file():
+        return False
+    import xarray as xr
+
+    try:
+        with xr.open_dataset(out) as ds:
+            attrs = dict(ds.attrs)
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
+        raise RunError(f"--resume: {out} exists but cannot be read ({exc})") from None
+    try:
+        same = Case.from_attrs(attrs) == case
+    except CaseError:
+        same = False
+    if not same:
+        raise BadInput(f"--resume: {out} holds a different case; allowed: the output of this case, "
+                       "or run without --resume to overwrite")
+    return attrs.get("converged") == "true"
+
+
+def _reused(case, out: Path) -> RunResult:
+    import xarray as xr
+
+    with xr.open_dataset(out) as ds:
+        ds = ds.load()
+    return RunResult(case, out, ds, True, ds.attrs.get("stop_reason", "converged"), reused=True)
+
+
+# ---------------------------------------------------------------------------- running
+def execute(case, out: str | Path | None = None, *, resume: bool = False, parcels: int | None = None,
+            progress: Callable | None = None, notify: Callable | None = None, tracker=None,
+            plots: bool = False, gas_progress: bool = False) -> RunResult:
+    """Run ``case`` to its end and return a :class:`RunResult`; write the dataset to ``out``.
+
+    progress(state) is called after every coupling pass (``eulag.coupling.PassState``);
+    notify(text) with the loop's remarks (relaxation changes); tracker: a replacement for
+    ``particles.track`` (the Dask front-end); plots: draw the standard figures beside ``out``.
+    A run that fails raises :class:`RunError` naming what failed (the checkpoint of the last
+    complete pass is kept for ``resume``).
+    """
+    if isinstance(case, ModelCase):
+        return _execute_other(case, out, resume=resume, progress=progress)
+    if parcels is not None:
+        n = case.numerics
+        case = case.replace(numerics={"parcels": parcels, "parcels_start": min(n.parcels_start, parcels)})
+    out = Path(out) if out is not None else None
+    if case.particles is None:
+        result = _single_phase(case, out, resume=resume, gas_progress=gas_progress)
+    else:
+        result = _coupled(case, out, resume=resume, progress=progress, notify=notify, tracker=tracker)
+    if plots and out is not None and not result.reused:
+        from eulag import plots as plotting
+
+        try:
+            result.figures = list(plotting.plot_all(out))
+        except Exception as exc:  # noqa: BLE001 - the dataset is written; a figure must not hide it
+            if notify is not None:
+                notify(f"figures not written ({exc}); the dataset {out} is complete")
+    return result
+
+
+def run(case, out: str | Path | None = None, **kwargs):
+    """Run ``case`` (a :class:`eulag.config.Case`, a case file or a packaged case's name) and
+    return its dataset (``xarray.Dataset``); keyword arguments as :func:`execute`."""
+    if isinstance(case, (str, Path)):
+        case = load_case(case)
+    return execute(case, out, **kwargs).dataset
+
+
+def _single_phase(case: Case, out: Path | None, *, resume: bool, gas_progress: bool) -> RunResult:
+    import rans
+    from eulag.coupling import build_mesh
+    from eulag.output import gas_dataset, write_dataset
+
+    if resume and out is not None and finished_run(out, case):
+        return _reused(case, out)
+    t_start = time.perf_counter()
+    timings = {}
+    mesh = build_mesh(case)
+    timings["mesh"] = time.perf_counter() - t_start
+    gas = rans.GasProperties(density=case.gas.density, viscosity=case.gas.viscosity)
+    t0 = time.perf_counter()
+    try:
+        fld = rans.solve(mesh, gas, bulk_velocity=case.gas.bulk_velocity, inlet_k=case.gas.inlet_k,
+                         inlet_epsilon=case.gas.inlet_epsilon, sources=None, tol=case.numerics.gas_tolerance,
+                         max_iterations=case.numerics.gas_max_iterations, progress=gas_progress)
+    except rans.SolverDivergence as exc:
+        raise RunError(str(exc) or "the gas solver diverged") from None
+    timings["gas_solve"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    ds = gas_dataset(case, mesh, fld, timings=timings)
+    if out is not None:
+        t0 = time.perf_counter()
+        write_dataset(ds, out)
+        timings["write"] = time.perf_counter() - t0
+    if fld.converged:
+        reason = f"gas solve converged in {fld.iterations} iterations"
+    else:
+        res = list(fld.residuals)
+        reason = (f"the gas solver did not converge in {fld.iterations} iterations (final residual "
+                  f"{float(res[-1]) if res else float('nan'):.3g} > gas_tolerance {case.numerics.gas_tolerance:g})")
+    return RunResult(case, out, ds, bool(fld.converged), reason, field=fld, mesh=mesh, timings=timings)
+
+
+def _coupled(case: Case, out: Path | None, *, resume: bool, progress, notify, tracker) -> RunResult:
+    import rans
+    from eulag.coupling import CouplingError, CouplingLoop
+    from eulag.output import coupled_dataset, write_dataset
+
+    t_start = time.perf_counter()
+    ckpt = Path(str(out) + ".checkpoint") if out is not None else None
+    if ckpt is not None:
+        if resume and not ckpt.exists() and finished_run(out, case):
+            return _reused(case, out)
+        if not resume and ckpt.exists():
+            ckpt.unlink()  # a fresh run starts from scratch
+    try:
+        loop = CouplingLoop(case, checkpoint=ckpt, resume=resume, progress=progress, tracker=tracker,
+                            notify=notify)
+        before = loop.timings.get("total", 0.0)
+        loop.run()
+    except (CouplingError, rans.SolverDivergence) as exc:
+        where = f" (checkpoint of the last complete pass: {ckpt})" if ckpt is not None else ""
+        raise RunError(f"{exc}{where}") from None
+    loop.timings["total"] = before + (time.perf_counter() - t_start)
+    ds = coupled_dataset(loop)
+    if out is not None:
+        write_dataset(ds, out)
+    return RunResult(case, out, ds, bool(loop.converged), loop.stop_reason, loop=loop, mesh=loop.mesh,
+                     timings=dict(loop.timings))
+
+
+def _execute_other(case: ModelCase, out, *, resume: bool, progress) -> RunResult:
+    """A dense-phase case: its model's module runs it and returns the dataset (its ``converged``
+    and ``stop_reason`` attributes give the verdict)."""
+    _, _, runner = _DENSE[case.model]
+    out = Path(out) if out is not None else None
+    try:
+        ds = getattr(_model_module(case.model), runner)(case.data, out, resume=resume, progress=progress is not None)
+    except (CaseError, ValueError) as exc:
+        raise BadInput(" ".join(str(exc).split())) from None
+    ok = ds.attrs.get("converged", "true") == "true"
+    return RunResult(case, out, ds, ok, ds.attrs.get("stop_reason", "finished"))
