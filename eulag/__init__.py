@@ -6,6 +6,40 @@ import rans  # noqa: F401  first: it sets single-threaded BLAS before numpy load
 
 __version__ = "0.1.0"
 
+__all__ = ["Case", "run", "execute", "load_case", "open_dataset", "analysis", "__version__"]
+
+
+def __getattr__(name):
+    """The Python API, imported on first use (``import eulag`` stays light for the CLI):
+
+    eulag.Case (``Case.from_file(path or packaged name)``, ``Case.from_toml``, keywords via
+    ``Case.from_dict``), eulag.run(case, out=None, **options) -> xarray.Dataset,
+    eulag.execute(...) -> eulag.runs.RunResult (dataset and the loop's verdict),
+    eulag.load_case(path or name), eulag.open_dataset(path), eulag.analysis."""
+    if name == "Case":
+        from eulag.config import Case
+
+        return Case
+    if name in ("run", "execute", "load_case"):
+        from eulag import runs
+
+        return getattr(runs, name)
+    if name == "open_dataset":
+        return open_dataset
+    if name == "analysis":
+        import importlib
+
+        return importlib.import_module("eulag.analysis")
+    raise AttributeError(f"module 'eulag' has no attribute {name!r}")
+
+
+def open_dataset(path):
+    """A result file of ``eulag run`` as an in-memory ``xarray.Dataset`` (the file is closed)."""
+    import xarray as xr
+
+    with xr.open_dataset(path) as ds:
+        return ds.load()
+
 
 @functools.lru_cache(maxsize=1)
 def git_commit() -> str:

@@ -799,6 +799,15 @@ class Case:
         return case
 
     @classmethod
+    def from_file(cls, spec: str | Path) -> "Case":
+        """A case from a TOML file path or a packaged case's name (``eulag cases``), e.g.
+        ``Case.from_file("tsuji_morikawa_200um")``."""
+        p = Path(spec)
+        if not p.is_file() and p.suffix != ".toml" and p.parent == Path("."):
+            p = packaged_cases().get(p.name, p)
+        return cls.from_toml(p)
+
+    @classmethod
     def from_attrs(cls, attrs: dict) -> "Case":
         """Rebuild a case from the flattened attributes of :meth:`to_attrs` (e.g. ``ds.attrs``)."""
         d: dict[str, Any] = {}
@@ -904,6 +913,11 @@ class Case:
             candidates.insert(0, Path(self.source).parent / ref)
         candidates.append(CASES_DIR / ref)
         return next((c for c in candidates if c.is_file()), None)
+
+
+def packaged_cases() -> dict[str, Path]:
+    """The case files shipped with eulag (``cases/`` and its folders), by name (file stem)."""
+    return {p.stem: p for p in sorted(CASES_DIR.rglob("*.toml"))}
 
 
 def _name_from_stem(stem: str) -> str:

@@ -497,6 +497,9 @@ class CouplingLoop:
         pass (default: ``particles.track``, local numba threads; e.g. a Dask-distributed one)
     """
 
+    #: the convergence criteria, in the order they are judged (``convergence_criteria``)
+    criteria_names = CRITERIA
+
     def __init__(self, case, *, checkpoint=None, resume=False, parcels=None, progress=None,
                  tracker=None, notify=None):
         if case.particles is None:

@@ -308,7 +308,7 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
                                            "pipe-mean -dp/dx after the pass's gas solve")
     # the loop's own verdict: each convergence criterion after each judged pass, and the last
     # judgement (eulag.coupling.convergence_criteria)
-    from eulag.coupling import CRITERIA
+    CRITERIA = loop.criteria_names
 
     ds = ds.assign_coords(criterion=xr.Variable("criterion", np.array(CRITERIA, dtype=object),
                                                 {"long_name": "convergence criterion of the coupling loop"}))

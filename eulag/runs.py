@@ -29,7 +29,7 @@ from dataclasses import field as _field
 from pathlib import Path
 from typing import Any, Callable
 
-from eulag.config import CASES_DIR, Case, CaseError
+from eulag.config import CASES_DIR, Case, CaseError, packaged_cases
 
 __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
            "output_path", "finished_run", "execute", "run"]
@@ -96,11 +96,6 @@ class RunResult:
 
 
 # ---------------------------------------------------------------------------- cases
-def packaged_cases() -> dict[str, Path]:
-    """The case files shipped with eulag, by name (file stem), e.g. ``tsuji_morikawa_200um``."""
-    return {p.stem: p for p in sorted(CASES_DIR.rglob("*.toml"))}
-
-
 def case_path(spec: str | Path) -> Path:
     """A case file from a path or, when no such file exists, a packaged case's name."""
     p = Path(spec)

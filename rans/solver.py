@@ -847,7 +847,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
     state where its iterations ran out.  Where noisy particle sinks leave k at 1e-3 of its level
     in a few cells, k and eps there contract slowly but steadily (0.97-0.99 per iteration with
     tracer-like sinks at alpha = 0.3), and the coupled step, started again from the upstream
-    state, only repeated that contraction (rans/bench.py).
+    state, only repeated that contraction (tests/benchmarks/bench_rans_sinks.py).
 
     The k-eps relaxation keeps the discrete fixed point; the coupled step and the momentum
     relaxation change the momentum-interpolation weights, so the cross flow of that station

@@ -162,7 +162,7 @@ def test_lagged_factor_factorises_the_next_matrix_after_a_slow_refinement():
 
 
 def test_march_with_lagged_factorisations_equals_the_direct_march():
-    # a developing pipe with a noisy particle-like k sink (rans.bench): every station converges
+    # a developing pipe with a noisy particle-like k sink (tests/benchmarks/bench_rans_sinks.py): every station converges
     # to the same fields as when every matrix is factorised (to far below the station tolerance)
     from rans import bench, solver
 

@@ -1,6 +1,6 @@
 """Benchmark of the axial march under stiff, noisy particle sinks of turbulence.
 
-    python -m rans.bench [--length 1.0] [--relaxation 0.3] [--visits 1] [--seed 1]
+    python tests/benchmarks/bench_rans_sinks.py [--length 1.0] [--relaxation 0.3] [--visits 1] [--seed 1]
                          [--section 20x40] [--direct] [--single]
 
 The developing base pipe (D = 30.5 mm, U0 = 10 m/s, inlet k = 1 m2/s2, 100 axial cells per m,
@@ -84,7 +84,7 @@ def run(length=1.0, relaxation=0.3, visits=1.0, seed=1, section=(20, 40), sinks=
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m rans.bench", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python tests/benchmarks/bench_rans_sinks.py", description=__doc__.splitlines()[0])
     ap.add_argument("--length", type=float, default=1.0, help="pipe length [m] (100 cells per m)")
     ap.add_argument("--relaxation", type=float, default=0.3, help="source under-relaxation")
     ap.add_argument("--visits", type=float, default=1.0, help="Poisson mean of the sink noise (0: smooth)")

@@ -1,0 +1,223 @@
+"""The Python API as the README shows it, the packaged cases by name, the run layer's verdict,
+and the import graph of the packages (lower layers never import upper ones; no circles)."""
+
+import ast
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import eulag
+
+ROOT = Path(__file__).resolve().parent.parent
+
+TINY_TOML = """
+name = "tiny_api"
+[pipe]
+diameter = 0.0305
+length = 0.5
+mode = "periodic"
+sections = [0.25]
+[gas]
+density = 1.205
+viscosity = 1.81e-5
+bulk_velocity = 10.0
+inlet_k = 1.0
+[particles]
+diameter = 100e-6
+density = 1020.0
+mass_loading = 0.2
+[walls]
+roughness_angle_std_deg = 3.0
+[numerics]
+radial_cells = 8
+azimuthal_cells = 16
+parcels = 1500
+parcels_start = 1000
+max_passes = 4
+average_passes = 2
+batch_size = 200
+seed = 3
+"""
+
+
+def _readme_python_block() -> str:
+    text = (ROOT / "README.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert blocks, "README.md has no python example"
+    return blocks[0]
+
+
+def test_readme_example_runs_on_a_tiny_case(tmp_path, monkeypatch):
+    """The README's Python example, verbatim except for the case file (a tiny periodic pipe
+    instead of the base case), the parcel count and the axial station."""
+    code = _readme_python_block()
+    case_files = re.findall(r'"(cases/[^"]+\.toml)"', code)
+    assert case_files, "the README example should load a case file"
+    tiny = tmp_path / "tiny_api.toml"
+    tiny.write_text(TINY_TOML)
+    for c in case_files:
+        code = code.replace(f'"{c}"', f'"{tiny}"')
+    code = re.sub(r"parcels=\d+", "parcels=1500", code)
+    code = re.sub(r"x=\d+(\.\d*)?", "x=0.25", code)  # the tiny pipe is 0.5 m long
+    monkeypatch.chdir(tmp_path)
+    ns: dict = {}
+    exec(compile(code, "README.md", "exec"), ns)  # noqa: S102 - the documented example itself
+    assert (tmp_path / "out.nc").is_file()
+    ds = eulag.open_dataset(tmp_path / "out.nc")
+    assert "gas_ux" in ds and ds.attrs["case.name"] == "tiny_api"
+
+
+def test_packaged_cases_load_by_name():
+    from eulag import runs
+
+    names = runs.packaged_cases()
+    assert "tsuji_morikawa_200um" in names and "scene_h" in names
+    case = runs.load_case("tsuji_morikawa_200um")
+    assert case.name == "tsuji_morikawa_200um" and case.particles.diameter == pytest.approx(200e-6)
+    assert eulag.Case.from_file("scene_a").name == "scene_a"
+    with pytest.raises(runs.BadInput, match="no such case file or packaged case"):
+        runs.load_case("no_such_case_name")
+
+
+def test_unknown_model_is_bad_input(tmp_path):
+    from eulag import runs
+
+    p = tmp_path / "m.toml"
+    p.write_text('model = "lattice-boltzmann"\n' + TINY_TOML)
+    with pytest.raises(runs.BadInput, match=r"model = 'lattice-boltzmann': unknown model; allowed: "
+                                            r"euler-lagrange, dem-darcy, two-fluid") as err:
+        runs.load_case(p)
+    assert err.value.status == 2
+
+
+def test_unconverged_run_reports_the_failing_criterion(tmp_path, capsys):
+    """Two early passes cannot meet the residual criterion (it needs four): the run stops at
+    max_passes, exit status 1, and says which criterion failed with value and threshold; the
+    dataset holds the same verdict."""
+    from eulag.cli import main
+
+    p = tmp_path / "short.toml"
+    p.write_text(TINY_TOML.replace("max_passes = 4", "max_passes = 4\ncoupling_tolerance = 1.5"))
+    status = main(["run", str(p), "-o", str(tmp_path / "o.nc"), "--quiet", "--no-plots"])
+    err = capsys.readouterr().err
+    assert status == 1
+    assert "not converged when max_passes = 4 was reached" in err
+    assert re.search(r"residual inf >= 1\.5", err), err
+    ds = eulag.open_dataset(tmp_path / "o.nc")
+    assert ds.attrs["converged"] == "false" and "residual" in ds.attrs["stop_reason"]
+    crit = list(ds["criterion"].values)
+    assert crit[:2] == ["gas_solve", "residual"]
+    i = crit.index("residual")
+    assert int(ds["criterion_met"].values[i]) == 0 and float(ds["criterion_threshold"].values[i]) == 1.5
+    assert ds["criterion_history"].dims == ("iteration", "criterion")
+
+
+# ------------------------------------------------------------------ import graph
+PACKAGES = ("eulag", "rans", "particles", "collisions", "dem", "darcy", "tfm")
+#: what each package may import of the others (DESIGN.md, "Layout")
+ALLOWED = {
+    "rans": set(),
+    "collisions": set(),
+    "darcy": set(),
+    "particles": {"collisions", "rans"},
+    "dem": {"collisions"},
+    "tfm": {"rans"},
+    "eulag": {"rans", "particles", "collisions", "dem", "darcy", "tfm"},
+}
+
+
+def _imports(path: Path, package: str) -> set[str]:
+    """Fully qualified project modules imported by the file at ``path`` (module ``package...``)."""
+    tree = ast.parse(path.read_text())
+    mod = ".".join(path.relative_to(ROOT).with_suffix("").parts)
+    if mod.endswith(".__init__"):
+        mod = mod[: -len(".__init__")]
+        pkg_parts = mod.split(".")
+    else:
+        pkg_parts = mod.split(".")[:-1]
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = pkg_parts[: len(pkg_parts) - node.level + 1]
+                name = ".".join(base + ([node.module] if node.module else []))
+                if node.module is None:
+                    out.update(f"{name}.{a.name}" for a in node.names)
+                else:
+                    out.add(name)
+            elif node.module:
+                out.add(node.module)
+                out.update(f"{node.module}.{a.name}" for a in node.names)
+    return {m for m in out if m.split(".")[0] in PACKAGES}
+
+
+def _module_files():
+    for pkg in PACKAGES:
+        d = ROOT / pkg
+        if d.is_dir():
+            yield from ((pkg, f) for f in sorted(d.rglob("*.py")))
+
+
+def test_lower_layers_never_import_upper_ones():
+    bad = []
+    for pkg, f in _module_files():
+        for m in _imports(f, pkg):
+            top = m.split(".")[0]
+            if top != pkg and top not in ALLOWED[pkg]:
+                bad.append(f"{f.relative_to(ROOT)} imports {m}")
+    assert not bad, bad
+
+
+def test_no_import_circle_among_modules():
+    """Module-level graph (every import, lazy ones included), each edge to an existing module
+    file; a cycle is a strongly connected component of more than one module."""
+    files = {}
+    for pkg, f in _module_files():
+        mod = ".".join(f.relative_to(ROOT).with_suffix("").parts)
+        files[mod[: -len(".__init__")] if mod.endswith(".__init__") else mod] = f
+    graph = {}
+    for mod, f in files.items():
+        deps = set()
+        for m in _imports(f, mod.split(".")[0]):
+            while m and m not in files:
+                m = m.rpartition(".")[0]
+            # a package's __init__ re-exporting its own modules is not a circle of the design
+            if m and m != mod and not mod.startswith(m + ".") and not m.startswith(mod + "."):
+                deps.add(m)
+        graph[mod] = deps
+    index, low, stack, on, cycles = {}, {}, [], set(), []
+    counter = [0]
+
+    def strong(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                cycles.append(sorted(comp))
+
+    import sys
+
+    sys.setrecursionlimit(10000)
+    for v in graph:
+        if v not in index:
+            strong(v)
+    assert not cycles, cycles
