@@ -1,0 +1,10 @@
+"""Shared numba flags of the dem kernels.
+
+JIT_FLAGS        serial kernels, cached on disk.
+PARALLEL_FLAGS   kernels with a ``prange`` over grains or nodes.  Every such loop writes only the
+                 entries of its own index (grain i or node column j): no shared ``+=``, so the
+                 result does not depend on the thread count (bit-identical for 1 and N threads).
+"""
+
+JIT_FLAGS = {"cache": True}
+PARALLEL_FLAGS = {"cache": True, "parallel": True}
