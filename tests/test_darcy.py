@@ -1,0 +1,113 @@
+"""The pressure-field gas solver (darcy/) against independent numbers:
+
+- Darcy's law: the steady pressure drop through a frozen packing is (η/κ) q L (uniform), and the
+  sum of the series resistances η q Σ l/κ_i (a slug-like porosity profile);
+- the paper's ±S source form gives the same steady drop as the flux condition;
+- periodic tube: the mean gradient is −η v_s/κ;
+- the discrete gas mass balance closes to round-off on random fields (Crank–Nicolson);
+- the quasi-steady P′ does not depend on P0 (it cancels from eq. 5 once ∂P′/∂t = 0);
+- Carman–Kozeny against its formula, and the cap.
+"""
+
+import numpy as np
+import pytest
+
+from darcy import DarcySolver, TubeGrid, carman_kozeny, poiseuille_tube_permeability
+
+L, DT, D = 0.525, 7e-3, 1.4e-3
+P0, ETA = 101325.0, 6.73e-5
+
+
+def _steady(solver, phi, u, v_s, steps=60, dt=0.05):
+    for _ in range(steps):
+        solver.step(phi, u, dt, v_s)
+    return solver
+
+
+def test_carman_kozeny_formula_and_cap():
+    assert carman_kozeny(0.47, D) == pytest.approx(D**2 * 0.47**3 / (180 * 0.53**2), rel=1e-14)
+    cap = poiseuille_tube_permeability(DT)
+    assert cap == pytest.approx(DT**2 / 32)
+    assert carman_kozeny(0.999, D, cap) == cap
+
+
+def test_tube_grid_areas_sum_to_circle():
+    g = TubeGrid(L, DT, 150, 2)
+    assert g.area.sum() == pytest.approx(np.pi * DT**2 / 4, rel=1e-3)
+    assert np.allclose(g.area, g.area[0, 0])
+    # the faces between the quadrants are full (radius long, l_x deep)
+    assert np.allclose(g.side_y, 0.5 * DT * g.lx, rtol=1e-12)
+
+
+def test_darcy_pressure_drop_through_frozen_uniform_packing():
+    g = TubeGrid(L, DT, 150, 2)
+    s = DarcySolver(g, P0, ETA, D, theta=1.0)
+    phi = np.full(g.shape, 0.45)
+    u = np.zeros(g.shape + (3,))
+    v_s = 0.5
+    _steady(s, phi, u, v_s)
+    expect = ETA / carman_kozeny(0.45, D) * v_s * L
+    assert s.inlet_pressure() == pytest.approx(expect, rel=1e-9)
+    # gradient at the cells is the Darcy gradient
+    assert np.allclose(s.gradient()[..., 0], -expect / L, rtol=1e-8)
+    assert np.allclose(s.gradient()[..., 1:], 0.0, atol=1e-6 * expect / L)
+
+
+def test_darcy_series_resistances_of_a_slug_profile():
+    g = TubeGrid(L, DT, 150, 2)
+    x = g.x
+    phi1 = 0.9 - 0.42 * np.exp(-(((x - 0.3) / 0.03) ** 2))
+    phi = np.broadcast_to(phi1[:, None, None], g.shape).copy()
+    s = DarcySolver(g, P0, ETA, D, theta=1.0)
+    v_s = 1.0
+    _steady(s, phi, np.zeros(g.shape + (3,)), v_s, steps=100)
+    kap = carman_kozeny(phi1, D, s.kappa_max)
+    expect = ETA * v_s * np.sum(g.lx / kap)
+    assert s.inlet_pressure() == pytest.approx(expect, rel=1e-8)
+
+
+def test_source_form_matches_flux_condition_at_steady_state():
+    g = TubeGrid(L, DT, 150, 2)
+    phi = np.full(g.shape, 0.5)
+    u = np.zeros(g.shape + (3,))
+    a = _steady(DarcySolver(g, P0, ETA, D, theta=1.0, inlet="flux"), phi, u, 1.0)
+    b = _steady(DarcySolver(g, P0, ETA, D, theta=1.0, inlet="source"), phi, u, 1.0)
+    # the source form lacks the half cell between the inlet face and the first centre
+    assert b.p[0].mean() == pytest.approx(a.p[0].mean(), rel=0.02)
+
+
+def test_periodic_mean_gradient_is_darcy():
+    g = TubeGrid(0.07, DT, 20, 2, periodic=True)
+    s = DarcySolver(g, P0, ETA, D, theta=0.5)
+    phi = np.full(g.shape, 0.45)
+    _steady(s, phi, np.zeros(g.shape + (3,)), 0.8, steps=20, dt=1e-3)
+    assert s.G == pytest.approx(-ETA * 0.8 / carman_kozeny(0.45, D), rel=1e-9)
+    assert s.inlet_pressure() == pytest.approx(-s.G * 0.07)
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_gas_mass_balance_closes_crank_nicolson(periodic):
+    rng = np.random.default_rng(7)
+    g = TubeGrid(0.1 if periodic else L, DT, 30, 2, periodic=periodic)
+    s = DarcySolver(g, P0, ETA, D, theta=0.5)
+    for _ in range(5):
+        phi = rng.uniform(0.4, 0.95, g.shape)
+        u = rng.normal(scale=0.3, size=g.shape + (3,))
+        s.step(phi, u, 1e-4, 1.2)
+        resid, terms = s.balance()
+        scale = max(abs(terms["sources"]), abs(terms["storage"]), g.cross_area * 1.2)
+        assert abs(resid) < 1e-10 * scale
+
+
+def test_quasi_steady_pressure_independent_of_p0():
+    rng = np.random.default_rng(3)
+    g = TubeGrid(L, DT, 60, 2)
+    phi = rng.uniform(0.42, 0.9, g.shape)
+    u = np.zeros(g.shape + (3,))
+    u[..., 0] = 0.3 * np.sin(np.linspace(0, 6, g.nx))[:, None, None]  # a compressing/expanding bed
+    ps = []
+    for p0 in (P0, 3 * P0):
+        s = DarcySolver(g, p0, ETA, D, theta=1.0)
+        _steady(s, phi, u, 1.0, steps=200)
+        ps.append(s.p.copy())
+    assert np.allclose(ps[0], ps[1], rtol=1e-7, atol=1e-9 * np.abs(ps[0]).max())
