@@ -1,0 +1,356 @@
+"""Fully developed (axially periodic) two-fluid solver on the pipe cross-section.
+
+Unknowns per cell of a :class:`rans.mesh.PipeMesh` cross-section: axial gas and solids
+velocities u_g, u_s, the solids fraction α_s, the granular temperature Θ; and the mean
+pressure gradient G = −dp/dx and the solids inventory (mean α_s).  G is set by the gas
+flow (superficial velocity U_g), the inventory by the solids mass flow M_s.
+
+Equations (Ding et al. 2024, Table 2 and eqs. 1–26, with ∂/∂x = 0 except the mean pressure):
+
+* axial momentum, both phases, drag implicit (one coupled sparse solve):
+  0 = α_g G + ∇·(α_g μ_g,eff ∇u_g) − β (u_g − u_s)
+  0 = α_s G + ∇·(α_s μ_s ∇u_s) + β (u_g − u_s),   μ_s = μ_kin + μ_col + μ_f (capped)
+  gas wall: log-law wall function; solids wall: the modified Schneiderbauer shear (eq. 24),
+  linearised as τ = −h u_s with h lagged.  The equations are linear in G for lagged
+  coefficients, so G is the factor that makes the gas flow U_g exactly.
+* granular temperature (Gidaspow form, steady, no convection):
+  0 = ∇·(κ_Θ ∇Θ) + α_s μ_s,kc |∇u_s|² − γ(Θ) − 3 β Θ,  wall flux into the solids −q_w (eq. 25)
+* cross-section distribution of α_s, a drift-flux balance: the in-plane solids flux
+  F = K (−∇p_s − α_s (ρ_s − ρ_g) g ŷ) − (D_t/α_g) ∇α_s, K = α_g² α_s/β,
+  (in-plane inertia and viscous stresses of the solids neglected; the gas carries the
+  counter-flow), advanced in pseudo-time to ∇·F = 0 with p_s = p_f(α_s) + p_kin(α_s, Θ)
+  implicit in α_s (Newton), the weight upwinded.
+
+Stated deviations from the paper (whose turbulence model is garbled in the extraction and
+which solved the 3-D unsteady problem): no secondary flow; the gas turbulent viscosity is
+Nikuradse's mixing length ν_t = ℓ² |∇u_g|; turbulent dispersion of the solids by the gas,
+D_t = ν_t/σ_α (σ_α = 1), is damped by (1 − min(α_s/α_min, 1))² so that inside the
+deposit friction, not turbulence, carries the solids; no solids turbulent viscosity.
+
+A failing solve stops with :class:`SectionDivergence` naming the variable and the cell.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from rans.kepsilon import E_WALL, KAPPA
+from rans.mesh import PipeMesh
+from rans.operators import Section
+
+from .drag import three_zone_drag
+from .friction import cap_viscosity, frictional_stress
+from .kinetic import (gidaspow_conductivity, gidaspow_viscosity, lun_dissipation, lun_solids_pressure,
+                      savage_radial_distribution)
+from .parameters import SolidsParameters
+from .wall import schneiderbauer_wall_heat_flux, schneiderbauer_wall_shear
+
+__all__ = ["SectionDivergence", "SectionProblem", "SectionState", "solve_section"]
+
+G_ACC = 9.80665
+
+
+class SectionDivergence(RuntimeError):
+    """A cross-section solve produced a non-finite or out-of-range value (message: variable, cell, iteration)."""
+
+
+@dataclass(frozen=True)
+class SectionProblem:
+    diameter: float
+    rho_g: float
+    mu_g: float
+    rho_s: float
+    d_s: float
+    u_g: float                  # superficial gas velocity U_g [m s-1]
+    m_s: float                  # solids mass flow [kg s-1]
+    friction: str = "berzi"
+    params: SolidsParameters = field(default_factory=SolidsParameters)
+    mckeen_scale: float = 1.0
+    drag_blend: float = 0.02
+    radial_cells: int = 16
+    azimuthal_cells: int = 32
+    first_cell_yplus: float = 30.0
+    max_iterations: int = 400
+    tolerance: float = 1e-4
+    alpha_steps: int = 3
+    theta_floor: float = 1e-8
+    relax_alpha: float = 0.5
+    relax_theta: float = 0.3
+
+
+@dataclass
+class SectionState:
+    alpha: np.ndarray
+    ug: np.ndarray
+    us: np.ndarray
+    theta: np.ndarray
+    G: float
+    dt: float = 1e-3
+    iteration: int = 0
+    history: list = field(default_factory=list)
+
+    def as_arrays(self):
+        return dict(alpha=self.alpha, ug=self.ug, us=self.us, theta=self.theta, G=np.array(self.G),
+                    dt=np.array(self.dt), iteration=np.array(self.iteration),
+                    history=np.array(self.history, dtype=float).reshape(-1, 4))
+
+    @classmethod
+    def from_arrays(cls, d):
+        return cls(alpha=d["alpha"].copy(), ug=d["ug"].copy(), us=d["us"].copy(), theta=d["theta"].copy(),
+                   G=float(d["G"]), dt=float(d["dt"]), iteration=int(d["iteration"]),
+                   history=[tuple(r) for r in np.asarray(d["history"])])
+
+
+def _harmonic(a, b):
+    return 2.0 * a * b / np.maximum(a + b, 1e-300)
+
+
+class _Solver:
+    def __init__(self, pb: SectionProblem):
+        self.pb = pb
+        self.mesh = PipeMesh.build(pb.diameter, 1.0, mode="periodic", radial_cells=pb.radial_cells,
+                                   azimuthal_cells=pb.azimuthal_cells, first_cell_yplus=pb.first_cell_yplus,
+                                   bulk_velocity=pb.u_g, density=pb.rho_g, viscosity=pb.mu_g)
+        self.sec = sec = Section(self.mesh)
+        self.n = sec.n
+        self.A = sec.area
+        self.Atot = float(self.A.sum())
+        R = self.mesh.radius
+        rc = np.sqrt(sec.cz**2 + sec.cy**2)
+        xi = np.clip((R - rc) / R, 0.0, 1.0)
+        self.mix_len = R * (0.14 - 0.08 * (1.0 - xi) ** 2 - 0.06 * (1.0 - xi) ** 4)
+        self.drho = pb.rho_s - pb.rho_g
+        self.capped = 0
+        # constant structural pieces
+        self.cf = sec.S / sec.delta
+        f = np.arange(sec.nf)
+        self.face_up_is_N = sec.ny > 0.0   # weight flux comes from the upper cell
+
+    # ------------------------------------------------------------ helpers
+    def check(self, name, v, it, lo=None):
+        bad = ~np.isfinite(v)
+        if lo is not None:
+            bad |= v < lo
+        if np.any(bad):
+            c = int(np.flatnonzero(bad)[0])
+            j, k = divmod(c, self.sec.nt)
+            raise SectionDivergence(f"{name} = {v[c]!r} in cell {c} (ring {j}, sector {k}) at iteration {it}")
+
+    def laplacian(self, gamma_f):
+        sec = self.sec
+        c = gamma_f * self.cf
+        n = self.n
+        diag = np.bincount(sec.P, c, n) + np.bincount(sec.N, c, n)
+        M = sp.coo_matrix((np.concatenate([diag, -c, -c]),
+                           (np.concatenate([np.arange(n), sec.P, sec.N]),
+                            np.concatenate([np.arange(n), sec.N, sec.P]))), shape=(n, n)).tocsr()
+        return M
+
+    def grad_mag2(self, phi, wall_value=None):
+        gz, gy = self.sec.gradient(phi, wall_value)
+        return gz**2 + gy**2
+
+    def closures(self, st):
+        pb, P = self.pb, self.pb.params
+        a = np.clip(st.alpha, 1e-10, P.alpha_max - 1e-4)
+        g0 = savage_radial_distribution(a, P.alpha_max)
+        slip = np.maximum(np.abs(st.ug - st.us), 1e-4)
+        beta = three_zone_drag(a, pb.rho_g, pb.mu_g, pb.d_s, slip, pb.mckeen_scale, pb.drag_blend)
+        gus2 = self.grad_mag2(st.us)
+        ss = 0.5 * gus2
+        pf, muf = frictional_stress(pb.friction, a, ss, st.theta, 0.0, pb.d_s, P)
+        muf, ncap = cap_viscosity(muf, P.mu_f_max)
+        mukc = gidaspow_viscosity(a, pb.rho_s, pb.d_s, st.theta, g0, P.e_ss)
+        gug2 = self.grad_mag2(st.ug, 0.0)
+        nut = self.mix_len**2 * np.sqrt(gug2)
+        return dict(a=a, g0=g0, beta=beta, pf=pf, muf=muf, ncap=ncap, mukc=mukc, gus2=gus2, nut=nut, ss=ss)
+
+    # ------------------------------------------------------------ axial momentum
+    def momentum(self, st, c):
+        pb, sec = self.pb, self.sec
+        n, A = self.n, self.A
+        a = c["a"]
+        ag = 1.0 - a
+        mu_g_eff = ag * (pb.mu_g + pb.rho_g * c["nut"])
+        mu_s_eff = a * (c["mukc"] + c["muf"])
+        Lg = self.laplacian(_harmonic(mu_g_eff[sec.P], mu_g_eff[sec.N]))
+        Ls = self.laplacian(_harmonic(mu_s_eff[sec.P], mu_s_eff[sec.N]))
+        # gas wall function
+        w = sec.wall
+        yp = sec.wall_distance
+        up = np.maximum(np.abs(st.ug[w]), 1e-6)
+        nu = pb.mu_g / pb.rho_g
+        ut = np.sqrt(nu * up / yp)
+        for _ in range(30):
+            yplus = ut * yp / nu
+            ut = np.where(yplus > 11.2, KAPPA * up / np.log(E_WALL * np.maximum(yplus, 11.2)), np.sqrt(nu * up / yp))
+        hg = ag[w] * pb.rho_g * ut**2 / up
+        # solids wall (eq. 24), linearised
+        usw = st.us[w]
+        tau = np.abs(schneiderbauer_wall_shear(np.where(usw == 0.0, 1e-6, usw), a[w], pb.rho_s, c["g0"][w],
+                                               st.theta[w], c["pf"][w], pb.params.e_sw, pb.params.mu_w,
+                                               pb.params.beta0))
+        hs = tau / np.maximum(np.abs(usw), 1e-2)
+        dg = np.zeros(n)
+        ds = np.zeros(n)
+        dg[w] += hg * sec.wall_arc
+        ds[w] += hs * sec.wall_arc
+        B = sp.diags(c["beta"] * A)
+        M = sp.bmat([[Lg + sp.diags(dg) + B, -B], [-B, Ls + sp.diags(ds) + B]], format="csc")
+        rhs = np.concatenate([ag * A, a * A])
+        u1 = spla.spsolve(M, rhs)
+        qg1 = float(np.sum(ag * u1[:n] * A))
+        G = pb.u_g * self.Atot / qg1
+        u = G * u1
+        self.tau_sw = tau
+        return u[:n], u[n:], G
+
+    # ------------------------------------------------------------ granular temperature
+    def granular_temperature(self, st, c):
+        pb, sec, P = self.pb, self.sec, self.pb.params
+        A, a = self.A, c["a"]
+        th = np.maximum(st.theta, pb.theta_floor)
+        kap = gidaspow_conductivity(a, pb.rho_s, pb.d_s, th, c["g0"], P.e_ss)
+        L = self.laplacian(_harmonic(kap[sec.P], kap[sec.N]))
+        gam = lun_dissipation(a, pb.rho_s, pb.d_s, th, c["g0"], P.e_ss) / th     # γ = (γ/Θ*) Θ
+        diag = (gam + 3.0 * c["beta"]) * A
+        src = a * c["mukc"] * c["gus2"] * A
+        w = sec.wall
+        qw = schneiderbauer_wall_heat_flux(st.us[w], a[w], pb.rho_s, c["g0"][w], th[w], c["pf"][w],
+                                           P.e_sw, P.mu_w, P.beta0)
+        src_w = -qw * sec.wall_arc
+        # implicit part of a negative wall flux (dissipation ∝ Θ^1.5): keep positivity
+        neg = src_w < 0.0
+        d_w = np.where(neg, -src_w / th[w], 0.0)
+        src = src.copy()
+        src[w] += np.where(neg, 0.0, src_w)
+        dd = diag.copy()
+        dd[w] += d_w
+        theta = spla.spsolve((L + sp.diags(dd)).tocsc(), src)
+        return np.maximum(theta, pb.theta_floor)
+
+    # ------------------------------------------------------------ solids distribution
+    def solids_pressure(self, a, theta, c):
+        pb, P = self.pb, self.pb.params
+        x = np.clip(a, 0.0, None)
+        pf, _ = frictional_stress(pb.friction, x, c["ss"], theta, 0.0, pb.d_s, P)
+        g0 = savage_radial_distribution(np.minimum(x, P.alpha_max - 1e-4), P.alpha_max)
+        return pf + lun_solids_pressure(x, pb.rho_s, theta, g0, P.e_ss)
+
+    def distribute(self, st, c, steps):
+        pb, sec, P = self.pb, self.sec, self.pb.params
+        n, A = self.n, self.A
+        a_f = np.clip(0.5 * (st.alpha[sec.P] + st.alpha[sec.N]), 1e-8, P.alpha_max - 1e-4)
+        beta_f = np.sqrt(c["beta"][sec.P] * c["beta"][sec.N])
+        bhat = beta_f / a_f
+        K = (1.0 - a_f) ** 2 / bhat
+        damp = (1.0 - np.minimum(st.alpha / P.alpha_min, 1.0)) ** 2
+        Dt = c["nut"] * damp / np.maximum(1.0 - st.alpha, 0.3)
+        Dt_f = _harmonic(Dt[sec.P], Dt[sec.N])
+        up = np.where(self.face_up_is_N, sec.N, sec.P)
+        wsign = sec.ny                             # weight flux −K α_up Δρ g n_y
+        S, d = sec.S, sec.delta
+        alpha = st.alpha.copy()
+        total = float(np.sum(alpha * A))
+        for _ in range(steps):
+            a_old = alpha.copy()
+            x = a_old.copy()
+            ok = False
+            for _it in range(25):
+                p = self.solids_pressure(x, st.theta, c)
+                hh = 1e-7
+                dp = (self.solids_pressure(x + hh, st.theta, c) - self.solids_pressure(x - hh, st.theta, c)) / (2 * hh)
+                # face flux P->N per unit length
+                F = S * (K * (-(p[sec.N] - p[sec.P]) / d - np.clip(x[up], 0.0, None) * self.drho * G_ACC * wsign)
+                         - Dt_f * (x[sec.N] - x[sec.P]) / d)
+                R = (x - a_old) * A / st.dt + np.bincount(sec.P, F, n) - np.bincount(sec.N, F, n)
+                dF_dP = S * (K * dp[sec.P] / d + Dt_f / d)
+                dF_dN = S * (-K * dp[sec.N] / d - Dt_f / d)
+                wgt = -S * K * self.drho * G_ACC * wsign * (x[up] > 0.0)
+                dF_dP = dF_dP + np.where(up == sec.P, wgt, 0.0)
+                dF_dN = dF_dN + np.where(up == sec.N, wgt, 0.0)
+                rows = np.concatenate([np.arange(n), sec.P, sec.P, sec.N, sec.N])
+                cols = np.concatenate([np.arange(n), sec.P, sec.N, sec.P, sec.N])
+                vals = np.concatenate([A / st.dt, dF_dP, dF_dN, -dF_dP, -dF_dN])
+                J = sp.coo_matrix((vals, (rows, cols)), shape=(n, n)).tocsc()
+                dx = spla.spsolve(J, -R)
+                x = x + dx
+                if not np.all(np.isfinite(x)):
+                    break
+                if np.max(np.abs(dx)) < 1e-10:
+                    ok = True
+                    break
+            if ok and x.min() > -1e-6 and x.max() < P.alpha_max + 0.05:
+                alpha = np.clip(x, 0.0, None)
+                alpha *= total / float(np.sum(alpha * A))
+                st.dt = min(st.dt * 1.5, 1e3)
+            else:
+                st.dt *= 0.3
+                if st.dt < 1e-10:
+                    self.check("alpha_s", np.where(np.isfinite(x), np.nan, x), st.iteration)
+                    raise SectionDivergence(f"alpha_s: Newton failed at iteration {st.iteration} "
+                                            f"(cell {int(np.nanargmax(np.abs(x - a_old)))})")
+        return alpha
+
+    # ------------------------------------------------------------ outer loop
+    def initial_state(self):
+        pb = self.pb
+        a0 = min(pb.m_s / (pb.rho_s * pb.u_g * self.Atot), 0.3)
+        n = self.n
+        return SectionState(alpha=np.full(n, a0), ug=np.full(n, pb.u_g / (1 - a0)), us=np.full(n, pb.u_g),
+                            theta=np.full(n, 1e-4), G=1000.0)
+
+    def run(self, st, callback=None):
+        pb = self.pb
+        converged = False
+        while st.iteration < pb.max_iterations:
+            st.iteration += 1
+            c = self.closures(st)
+            ug, us, G = self.momentum(st, c)
+            self.check("gas_ux", ug, st.iteration)
+            self.check("solids_ux", us, st.iteration)
+            du = float(np.max(np.abs(us - st.us)) / pb.u_g)
+            st.ug, st.us = 0.7 * ug + 0.3 * st.ug, 0.7 * us + 0.3 * st.us
+            dG = abs(G - st.G) / G
+            st.G = 0.7 * G + 0.3 * st.G
+            c = self.closures(st)
+            th = self.granular_temperature(st, c)
+            self.check("theta", th, st.iteration, lo=0.0)
+            st.theta = np.exp(pb.relax_theta * np.log(th) + (1.0 - pb.relax_theta) * np.log(np.maximum(st.theta, pb.theta_floor)))
+            c = self.closures(st)
+            alpha = self.distribute(st, c, pb.alpha_steps)
+            # solids mass flow -> inventory
+            ms = float(np.sum(alpha * pb.rho_s * st.us * self.A))
+            ratio = pb.m_s / max(ms, 1e-12)
+            fac = ratio ** 0.5
+            alpha = alpha * fac
+            over = alpha > pb.params.alpha_max - 0.02
+            if np.any(over):
+                alpha = np.minimum(alpha, pb.params.alpha_max - 0.02)
+            self.check("alpha_s", alpha, st.iteration, lo=0.0)
+            da = float(np.max(np.abs(alpha - st.alpha)))
+            st.alpha = pb.relax_alpha * alpha + (1.0 - pb.relax_alpha) * st.alpha
+            res = max(du, dG, da, abs(ratio - 1.0))
+            st.history.append((st.iteration, res, st.G, ms))
+            self.last = dict(du=du, dG=dG, da=da, dm=abs(ratio - 1.0))
+            if callback is not None:
+                callback(st)
+            if res < pb.tolerance:
+                converged = True
+                break
+        c = self.closures(st)
+        self.capped = c["ncap"]
+        return st, converged, c
+
+
+def solve_section(pb: SectionProblem, state: SectionState | None = None, callback=None):
+    """Solve one fully developed cross-section; returns (solver, state, converged, closures)."""
+    s = _Solver(pb)
+    st = state if state is not None else s.initial_state()
+    st, ok, c = s.run(st, callback)
+    return s, st, ok, c
