@@ -45,9 +45,15 @@ TWO_PI = 2.0 * np.pi
 # ---------------------------------------------------------------------------
 
 def attr(ds: xr.Dataset, key: str, default: Any = None) -> Any:
-    """Global attribute ``key`` (flattened case keys such as ``"gas.bulk_velocity"``) as a
+    """Global attribute ``key`` (flattened case keys such as ``"gas.bulk_velocity"``, stored as
+    ``case_gas_bulk_velocity``; datasets written before: the dotted name itself) as a
     plain Python value (numpy scalars unwrapped, 1-element arrays kept as arrays)."""
-    value = ds.attrs.get(key, default)
+    if key in ds.attrs:
+        value = ds.attrs[key]
+    else:
+        from eulag.config import dataset_attr_name
+
+        value = ds.attrs.get(dataset_attr_name(key), default) if "." in key else default
     if isinstance(value, np.generic):
         return value.item()
     return value

@@ -809,9 +809,10 @@ class Case:
 
     @classmethod
     def from_attrs(cls, attrs: dict) -> "Case":
-        """Rebuild a case from the flattened attributes of :meth:`to_attrs` (e.g. ``ds.attrs``)."""
+        """Rebuild a case from the flattened attributes of :meth:`to_attrs`, or from a dataset's
+        global attributes (``ds.attrs``, :func:`case_keys_from_dataset`)."""
         d: dict[str, Any] = {}
-        for key, value in attrs.items():
+        for key, value in case_keys_from_dataset(attrs).items():
             if key in ("case.name", "case.description"):
                 d[key.split(".", 1)[1]] = _plain(value)
                 continue
@@ -913,6 +914,37 @@ class Case:
             candidates.insert(0, Path(self.source).parent / ref)
         candidates.append(CASES_DIR / ref)
         return next((c for c in candidates if c.is_file()), None)
+
+
+def dataset_attr_name(key: str) -> str:
+    """The CF-clean global attribute name of a flattened case key: ``"pipe.diameter"`` ->
+    ``"case_pipe_diameter"``, ``"case.name"`` -> ``"case_name"`` (CF 2.3: letters, digits and
+    underscores)."""
+    section, _, leaf = key.partition(".")
+    return f"case_{leaf}" if section == "case" else f"case_{section}_{leaf}"
+
+
+def case_keys_from_dataset(attrs: dict) -> dict:
+    """The flattened case keys (``"section.key"``) of a dataset's global attributes, read from
+    their CF-clean names (:func:`dataset_attr_name`) or, in datasets written before, from the
+    dotted names themselves; other attributes are left out."""
+    out = {}
+    for name, value in attrs.items():
+        if "." in name:
+            if name.partition(".")[0] in _SECTIONS or name in ("case.name", "case.description"):
+                out.setdefault(name, value)
+            continue
+        if name in ("case_name", "case_description"):
+            out["case." + name[5:]] = value
+            continue
+        if not name.startswith("case_"):
+            continue
+        rest = name[5:]
+        for section in _SECTIONS:
+            if rest.startswith(section + "_"):
+                out[f"{section}.{rest[len(section) + 1:]}"] = value
+                break
+    return out
 
 
 def packaged_cases() -> dict[str, Path]:

@@ -722,12 +722,9 @@ class CouplingLoop:
             self.converged = True
             self.converged_at = m
             self.phase = "final"
-        if self.phase == "early" or m == self.converged_at:
-            for c in self.criteria:
-                getattr(h, "criterion_" + c.name).append(c.value)
-        else:
-            for name in CRITERIA:
-                getattr(h, "criterion_" + name).append(math.nan)
+        judged = {c.name: c.value for c in self.criteria} if (self.phase == "early" or m == self.converged_at) else {}
+        for name in CRITERIA:  # NaN: not judged (a final pass, or a criterion the case has not)
+            getattr(h, "criterion_" + name).append(judged.get(name, math.nan))
         state = PassState(index=m, parcels=parcels_m, relaxation=h.relaxation[-1], residual=residual,
                           pressure_gradient=dpdx, phase=self.phase, converged=self.converged and self.finished,
                           finished=self.finished, counts=counts,

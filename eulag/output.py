@@ -1,6 +1,6 @@
 """Self-describing NetCDF datasets (DESIGN.md, "Dataset schema").
 
-:func:`gas_dataset` turns a solved gas field into an :class:`xarray.Dataset` (CF-1.10,
+:func:`gas_dataset` turns a solved gas field into an :class:`xarray.Dataset` (CF-1.8,
 ``units`` and ``long_name`` on every variable, the whole case in the global attributes);
 :func:`write_dataset` writes it atomically, so no partial file is ever left behind.
 """
@@ -17,10 +17,13 @@ import numpy as np
 import xarray as xr
 
 import eulag
+from eulag.config import dataset_attr_name
 
 __all__ = ["gas_dataset", "coupled_dataset", "write_dataset", "atomic_write", "CONVENTIONS"]
 
-CONVENTIONS = "CF-1.10"
+#: The CF version the datasets follow: nothing newer than CF-1.8 is used, and 1.8 is the newest
+#: the CF Checker (cfchecker 4.1) checks.
+CONVENTIONS = "CF-1.8"
 
 
 def _var(dims, values, units: str, long_name: str, **extra) -> xr.Variable:
@@ -30,7 +33,7 @@ def _var(dims, values, units: str, long_name: str, **extra) -> xr.Variable:
 
 def gas_dataset(case, mesh, field, *, timings: Mapping[str, float] | None = None,
                 attrs: Mapping[str, Any] | None = None) -> xr.Dataset:
-    """The gas variables of a solved case as a CF-1.10 dataset.
+    """The gas variables of a solved case as a CF-1.8 dataset.
 
     Parameters
     ----------
@@ -68,27 +71,33 @@ def gas_dataset(case, mesh, field, *, timings: Mapping[str, float] | None = None
         "theta_edge": _var("theta_edge", mesh.theta_edges, "rad", "azimuthal angle of the sector faces"),
         "y": _var(("r", "theta"), mesh.y, "m", "vertical position of the cell centroid (up)"),
         "z": _var(("r", "theta"), mesh.z, "m", "horizontal position of the cell centroid"),
-        "cell_area": _var(("r", "theta"), mesh.cell_area, "m2",
-                          "cross-section area of the cell (exact, curved wall)"),
         "iteration": xr.Variable("iteration", np.arange(1, dtype=np.int64),
                                  {"long_name": "coupling pass (0: the single-phase gas solve)",
                                   "units": "1"}),
         "gas_iteration": xr.Variable("gas_iteration", np.arange(1, residuals.size + 1, dtype=np.int64),
                                      {"long_name": "gas-solver outer iteration", "units": "1"}),
     }
+    data_bounds = {}
+    for name, edges in (("x", mesh.x_edges), ("r", mesh.r_edges), ("theta", mesh.theta_edges)):
+        e = np.asarray(edges, dtype=np.float64)
+        coords[name].attrs["bounds"] = f"{name}_bnds"
+        data_bounds[f"{name}_bnds"] = _var((name, "nv"), np.stack([e[:-1], e[1:]], axis=1),
+                                      coords[name].attrs["units"], f"faces of the cells along {name}")
     if periodic:
         coords["x"].attrs["comment"] = "axially periodic (fully developed) flow: a single station"
 
     cell_vars = dict(coordinates="y z", cell_measures="area: cell_area")
-    p_ref = "section mean (periodic, fully developed)" if periodic else "the outlet"
+    p_ref = "its section mean (periodic, fully developed)" if periodic else "the outlet"
     data = {
+        "cell_area": _var(("r", "theta"), mesh.cell_area, "m2",
+                          "cross-section area of the cell (exact, curved wall)", coordinates="y z"),
         "gas_ux": _var(xyz, field.ux, "m s-1", "mean gas velocity, axial (x)", **cell_vars),
         "gas_uy": _var(xyz, field.uy, "m s-1", "mean gas velocity, vertical up (y)", **cell_vars),
         "gas_uz": _var(xyz, field.uz, "m s-1", "mean gas velocity, horizontal (z)", **cell_vars),
         "gas_k": _var(xyz, field.k, "m2 s-2", "turbulent kinetic energy of the gas", **cell_vars),
         "gas_epsilon": _var(xyz, field.epsilon, "m2 s-3",
                             "dissipation rate of turbulent kinetic energy", **cell_vars),
-        "gas_p": _var(xyz, field.p, "Pa", f"gas pressure relative to the {p_ref}", **cell_vars),
+        "gas_p": _var(xyz, field.p, "Pa", f"gas pressure relative to {p_ref}", **cell_vars),
         "gas_nut": _var(xyz, field.nut, "m2 s-1", "turbulent kinematic viscosity", **cell_vars),
         "pressure_gradient": _var("x", dpdx, "Pa m-1", "section-mean -dp/dx"),
         "pressure_gradient_single_phase": _var(
@@ -121,26 +130,48 @@ def gas_dataset(case, mesh, field, *, timings: Mapping[str, float] | None = None
         "source": f"eulag {eulag.__version__}",
         "history": f"{_dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds')} "
                    f"eulag {eulag.__version__} run {case.name}",
+        "model": "euler-lagrange",
         "eulag_version": eulag.__version__,
         "eulag_commit": eulag.git_commit(),
         "seed": int(case.numerics.seed),
-        "converged": "true" if converged else "false",
         "gas_converged": "true" if converged else "false",
         "gas_iterations": int(getattr(field, "iterations", residuals.size)),
         "phases": "single-phase" if case.particles is None else "gas-particle",
         "cells": int(nx * nr * nt),
         "reynolds_number": float(case.reynolds_number),
     }
-    glob.update(case.to_attrs())
+    glob.update({dataset_attr_name(k): v for k, v in case.to_attrs().items()})
     if case.source:
         glob["case_file"] = str(case.source)
+        try:  # the case file itself, verbatim, so the dataset can be re-run without it
+            glob["case_toml"] = Path(case.source).read_text(encoding="utf-8")
+        except OSError:
+            pass
     if timings:
         glob["time_units"] = "s"
         for phase, seconds in timings.items():
             glob[f"time_{phase}"] = float(seconds)
     if attrs:
         glob.update(attrs)
-    return xr.Dataset(data, coords=coords, attrs=glob)
+    ds = xr.Dataset({**data, **data_bounds}, coords=coords, attrs=glob)
+    set_converged(ds, converged)
+    return ds
+
+
+def set_converged(ds: xr.Dataset, converged: bool) -> None:
+    """The run's verdict as one CF flag variable ``converged`` (0 not converged, 1 converged)."""
+    ds["converged"] = xr.Variable((), np.int8(1 if converged else 0),
+                                  {"long_name": "whether the run converged",
+                                   "flag_values": np.array([0, 1], dtype=np.int8),
+                                   "flag_meanings": "not_converged converged"})
+
+
+def is_converged(ds) -> bool:
+    """The run's verdict from a dataset (the ``converged`` flag variable, or the global
+    attribute of datasets written before it)."""
+    if "converged" in ds.variables:
+        return bool(int(ds["converged"].values))
+    return ds.attrs.get("converged") == "true"
 
 
 def atomic_write(path: str | os.PathLike, write) -> Path:
@@ -175,8 +206,10 @@ def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     encoding = {}
     for name, var in ds.variables.items():
         enc: dict[str, Any] = {}
-        if name in ds.coords:
+        if name in ds.coords or name.endswith("_bnds"):
             enc["_FillValue"] = None
+        if var.dtype.kind in "OU":  # CF: character arrays, not variable-length strings
+            enc["dtype"] = "S1"
         if var.size >= 4096 and var.dtype.kind == "f":
             enc.update(zlib=True, complevel=1)
         if enc:
@@ -310,8 +343,8 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
     # judgement (eulag.coupling.convergence_criteria)
     CRITERIA = loop.criteria_names
 
-    ds = ds.assign_coords(criterion=xr.Variable("criterion", np.array(CRITERIA, dtype=object),
-                                                {"long_name": "convergence criterion of the coupling loop"}))
+    ds["criterion_name"] = xr.Variable("criterion", np.array(CRITERIA, dtype=object),
+                                       {"long_name": "convergence criterion of the coupling loop"})
     ds["criterion_history"] = _var(
         ("iteration", "criterion"), np.stack([h["criterion_" + c] for c in CRITERIA], axis=1), "1",
         "value of each convergence criterion after the pass (NaN: final pass, not judged)")
@@ -339,12 +372,10 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
     ds["solids_pressure_drop_ratio"] = _var((), ratio, "1", "pressure drop with particles / without (whole pipe)")
     ds["additional_pressure_loss_coefficient"] = _var(
         (), lam_z, "1", "lambda_Z = (dp_total - dp_gas) / (eta rho U0^2 L / (2 D))")
-    ds["converged"] = xr.Variable((), np.int8(1 if loop.converged else 0),
-                                  {"long_name": "coupling converged (1) or not (0)", "units": "1"})
+    set_converged(ds, loop.converged)
     c = s.counts
     b = s.budget
     ds.attrs.update({
-        "converged": "true" if loop.converged else "false",
         "coupling_passes": int(npass),
         "parcels": int(case.numerics.parcels),
         "final_passes_averaged": int(s.passes),

@@ -351,7 +351,7 @@ def convergence(ds: xr.Dataset, path) -> Path | None:
         panels.append(("residual", "coupling pass", "coupling residual [1]", True))
     # the march's residual history is a station-by-station concatenation: it says little as
     # one curve, so a developing-pipe run with a coupling history shows time per pass instead
-    marching = ds.attrs.get("pipe.mode") == "developing" and "time_gas_solve_pass" in ds
+    marching = an.attr(ds, "pipe.mode") == "developing" and "time_gas_solve_pass" in ds
     if "gas_residual" in ds and ds["gas_residual"].size and not marching:
         panels.append(("gas_residual", "gas-solver iteration", "gas residual [1]", True))
     for name in ds.data_vars:
@@ -383,7 +383,7 @@ def convergence(ds: xr.Dataset, path) -> Path | None:
         ax.plot(it, positive, "o-" if v.size < 50 else "-", ms=3)
         if log and np.any(v > 0):
             ax.set_yscale("log")
-        tol = ds.attrs.get("numerics.coupling_tolerance")
+        tol = an.attr(ds, "numerics.coupling_tolerance")
         if name == "residual" and tol is not None:
             ax.axhline(float(tol), color="0.4", ls="--", lw=1, label=f"tolerance {float(tol):g}")
             ax.legend(fontsize="small")

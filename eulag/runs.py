@@ -178,9 +178,12 @@ def finished_run(out: Path, case: Case) -> bool:
         return False
     import xarray as xr
 
+    from eulag.output import is_converged
+
     try:
         with xr.open_dataset(out) as ds:
             attrs = dict(ds.attrs)
+            converged = is_converged(ds)
     except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
         raise RunError(f"--resume: {out} exists but cannot be read ({exc})") from None
     try:
@@ -190,7 +193,7 @@ def finished_run(out: Path, case: Case) -> bool:
     if not same:
         raise BadInput(f"--resume: {out} holds a different case; allowed: the output of this case, "
                        "or run without --resume to overwrite")
-    return attrs.get("converged") == "true"
+    return converged
 
 
 def _reused(case, out: Path) -> RunResult:

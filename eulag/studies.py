@@ -61,7 +61,9 @@ from typing import Any, Callable
 import numpy as np
 
 import eulag
+from eulag.analysis import attr as _attr
 from eulag.config import CASES_DIR, Case, CaseError, _public_fields, comparable_attrs
+from eulag.output import is_converged
 
 __all__ = ["add_arguments", "STUDIES", "QUICK_NUMERICS", "RunRecord", "run_case", "machine_info",
            "profile_deviation", "pareto_front", "scene_cases", "stability_cases",
@@ -524,7 +526,7 @@ def run_time(ds) -> float:
 
 
 def _record_from_dataset(name, case, out, ds) -> RunRecord:
-    converged = ds.attrs.get("converged") == "true"
+    converged = is_converged(ds)
     res = np.asarray(ds["residual"].values, dtype=float) if "residual" in ds else np.array([math.nan])
     relax = np.asarray(ds["relaxation"].values, dtype=float) if "relaxation" in ds else np.array([math.nan])
     passes = int(ds.attrs.get("coupling_passes", res.size))
@@ -967,7 +969,7 @@ def diameter_profile(ds, var: str, x: float, y_over_R: np.ndarray, *, wall_value
     from eulag import analysis as an
 
     y, v = an.vertical_profile(ds, var, x)
-    R = 0.5 * float(ds.attrs["pipe.diameter"])
+    R = 0.5 * float(_attr(ds, "pipe.diameter"))
     ok = np.isfinite(v)
     y, v = y[ok] / R, v[ok]
     if y.size == 0:
@@ -1186,7 +1188,7 @@ def study_scenes(args, outdir: Path, t_start: float) -> int:
         x = case.pipe.sections[0]
 
         def extract(ds, rec, x=x):
-            u0 = float(ds.attrs["gas.bulk_velocity"])
+            u0 = float(_attr(ds, "gas.bulk_velocity"))
             sec = an.section(ds, x)
             rates = an.wall_impact_rates(ds, x)
             dp = float(sec["pressure_gradient"].values)
@@ -1325,7 +1327,7 @@ ER_POINTS = np.linspace(-0.95, 0.95, 39)  # y/R of the comparison points on the 
 def _er_profiles(ds, x: float) -> dict[str, np.ndarray]:
     from eulag import analysis as an
 
-    u0 = float(ds.attrs["gas.bulk_velocity"])
+    u0 = float(_attr(ds, "gas.bulk_velocity"))
     ys = ER_POINTS
     cbar = an.section_mean(ds, np.nan_to_num(an._field(ds, "particle_concentration", x)), x)
     if not cbar > 0.0:  # no particles at the station: no concentration profile
@@ -1356,7 +1358,7 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
 
         def extract(ds, rec, s=s):
             m = {"x_station": _station(ds, x), "profiles": _er_profiles(ds, x)}
-            u0 = float(ds.attrs["gas.bulk_velocity"])
+            u0 = float(_attr(ds, "gas.bulk_velocity"))
             for phase in ("gas", "particle"):
                 if phase in meas:
                     sim = diameter_profile(ds, f"{phase}_ux", x, meas[phase]["y_over_R"],
@@ -1602,8 +1604,8 @@ def _floored_where(ds) -> dict[str, Any]:
         k = np.asarray(ds["gas_k"].values, dtype=float)
         eps = np.asarray(ds["gas_epsilon"].values, dtype=float)
         x = np.asarray(ds["x"].values, dtype=float)
-        k_floor, eps_floor = turbulence_floors(float(ds.attrs["gas.bulk_velocity"]),
-                                               float(ds.attrs["pipe.diameter"]))
+        k_floor, eps_floor = turbulence_floors(float(_attr(ds, "gas.bulk_velocity")),
+                                               float(_attr(ds, "pipe.diameter")))
     except (KeyError, ValueError, TypeError):
         return {}
     at = (k <= k_floor * (1.0 + 1e-6)) | (eps <= eps_floor * (1.0 + 1e-6))  # (x, r, theta)
@@ -1768,11 +1770,11 @@ def _tracer_ratios(ds) -> dict[str, float]:
     """Median -S_k/(c_p eps) and -S_k/(rho eps) in the core (r < R/2) cells with particles."""
     try:
         r = np.asarray(ds["r"].values)
-        core = r < 0.5 * float(ds.attrs["pipe.diameter"]) / 2
+        core = r < 0.5 * float(_attr(ds, "pipe.diameter")) / 2
         cp = ds["particle_concentration"].values[:, core, :]
         sk = ds["source_k"].values[:, core, :]
         eps = ds["gas_epsilon"].values[:, core, :]
-        rho = float(ds.attrs["gas.density"])
+        rho = float(_attr(ds, "gas.density"))
         ok = cp > 0
         return {"tracer_sk_ratio": float(np.median(-sk[ok] / (cp[ok] * eps[ok]))),
                 "tracer_sk_gas_ratio": float(np.median(-sk[ok] / (rho * eps[ok])))}

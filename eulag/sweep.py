@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from eulag.config import Case, CaseError
+from eulag.output import is_converged
 
 __all__ = ["SweepInputError", "SweepCase", "plan_sweep", "run_case", "run_sweep", "write_summary",
            "summary_row", "COLUMNS", "SUMMARY_STEM"]
@@ -145,7 +146,7 @@ def _ended_unconverged(out):
     import xarray as xr
 
     with xr.open_dataset(out) as ds:
-        return ds.attrs.get("converged") == "false"
+        return not is_converged(ds)
 
 
 # ---------------------------------------------------------------------------- one case
@@ -166,7 +167,7 @@ def summary_row(name, ds, output, status, wall_time, error=""):
         return row
     import numpy as np
 
-    row["converged"] = ds.attrs.get("converged") == "true"
+    row["converged"] = is_converged(ds)
     two_phase = "parcels" in ds.variables
     row["passes"] = int(ds.sizes.get("iteration", 0)) if two_phase else 0
     if "residual" in ds.variables and ds["residual"].size:

@@ -66,7 +66,7 @@ def test_readme_example_runs_on_a_tiny_case(tmp_path, monkeypatch):
     exec(compile(code, "README.md", "exec"), ns)  # noqa: S102 - the documented example itself
     assert (tmp_path / "out.nc").is_file()
     ds = eulag.open_dataset(tmp_path / "out.nc")
-    assert "gas_ux" in ds and ds.attrs["case.name"] == "tiny_api"
+    assert "gas_ux" in ds and ds.attrs["case_name"] == "tiny_api"
 
 
 def test_packaged_cases_load_by_name():
@@ -106,8 +106,8 @@ def test_unconverged_run_reports_the_failing_criterion(tmp_path, capsys):
     assert "not converged when max_passes = 4 was reached" in err
     assert re.search(r"residual inf >= 1\.5", err), err
     ds = eulag.open_dataset(tmp_path / "o.nc")
-    assert ds.attrs["converged"] == "false" and "residual" in ds.attrs["stop_reason"]
-    crit = list(ds["criterion"].values)
+    assert int(ds["converged"]) == 0 and "residual" in ds.attrs["stop_reason"]
+    crit = [str(c) for c in ds["criterion_name"].values]
     assert crit[:2] == ["gas_solve", "residual"]
     i = crit.index("residual")
     assert int(ds["criterion_met"].values[i]) == 0 and float(ds["criterion_threshold"].values[i]) == 1.5

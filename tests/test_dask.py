@@ -63,7 +63,7 @@ def test_dask_two_workers_equal_local(client, local_ds):
     ds = run(small_case(**SPLIT), tracker=tracker)
     assert tracker.passes == ds.sizes["iteration"] and tracker.tasks >= 3 * tracker.passes
     data_vars_equal(local_ds, ds)
-    assert ds.attrs["converged"] == local_ds.attrs["converged"]
+    assert int(ds["converged"]) == int(local_ds["converged"])
 
 
 def test_dask_one_worker_equals_two(client, local_ds):

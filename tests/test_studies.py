@@ -91,7 +91,7 @@ def test_tsuji_morikawa_quick_compares_four_runs_with_the_digitised_profiles(tm)
             import xarray as xr
 
             with xr.open_dataset(out / f"tm_U{r['U0'][:2]}_four-way.nc") as ds:
-                want = float(np.mean(ds["collision_momentum_history"].values[-int(ds.attrs["numerics.average_passes"]):]))
+                want = float(np.mean(ds["collision_momentum_history"].values[-int(ds.attrs["case_numerics_average_passes"]):]))
             assert np.isfinite(cm) and cm == pytest.approx(want, rel=0.01, abs=1e-3)
     points = rows(out / "tsuji-morikawa_points.csv")
     assert len(points) == 4 * 2 * 15

@@ -90,7 +90,7 @@ def test_mirror_cell_array_keeps_a_symmetric_field_and_kills_an_antisymmetric_on
 def test_a_mirror_symmetric_coupled_case_gives_mirror_symmetric_fields():
     """Sources sampled symmetrically → gas and particle fields symmetric to round-off."""
     ds = run(small_case(**{"numerics.max_passes": 3, "numerics.average_passes": 1}))
-    assert ds.attrs["numerics.mirror_symmetry"] == "true"
+    assert ds.attrs["case_numerics_mirror_symmetry"] == "true"
     for name, parity in (("gas_ux", 1), ("gas_uy", 1), ("gas_uz", -1), ("gas_k", 1), ("gas_p", 1),
                          ("particle_concentration", 1), ("particle_uz", -1), ("source_uy", 1),
                          ("source_uz", -1), ("particle_collision_force_y", 1)):
@@ -108,7 +108,7 @@ def test_four_way_datasets_carry_the_per_cell_collision_force():
         assert v.attrs["units"] == "N m-3" and v.dims == ("x", "r", "theta")
         assert f"particle_collision_force_{c}_stderr" in ds
         # the cell values integrate to the pipe total, which the parcel budget gives independently
-        total = float((v * ds.cell_area).sum() * float(ds.attrs["pipe.length"]) / ds.sizes["x"])
+        total = float((v * ds.cell_area).sum() * float(ds.attrs["case_pipe_length"]) / ds.sizes["x"])
         assert total == pytest.approx(float(ds[f"particle_collision_force_total_{c}"]), rel=1e-9,
                                       abs=1e-12)
     two = run(small_case(**{"numerics.max_passes": 2, "numerics.average_passes": 1,
