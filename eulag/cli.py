@@ -180,12 +180,11 @@ def cmd_run(args) -> int:
     bar = None if args.quiet or not coupled else _progress_bar(case, case.numerics.max_passes)
 
     def progress(state):
-        crit = ""
-        loop_line = (f"residual {state.residual:.3g} (< {case.numerics.coupling_tolerance:g}), "
+        loop_line = (f"residual {state.residual:.3g} (tolerance {case.numerics.coupling_tolerance:g}), "
                      f"-dp/dx {state.pressure_gradient:.4g} Pa/m, {state.parcels} parcels, {state.phase}")
         if bar is not None:
             bar.update(state.index - bar.n)
-            bar.set_postfix_str(loop_line + crit)
+            bar.set_postfix_str(loop_line)
         elif not args.quiet:
             print(f"{case.name}: pass {state.index}: {loop_line}", file=sys.stderr, flush=True)
 
@@ -311,11 +310,21 @@ def _coupled_summary(case, loop, ds, out) -> str:
         f"  parcels      {int(h.parcels[-1])} per final pass; lost {int(sum(h.lost))}, stuck {int(sum(h.stuck))}",
         *_collision_momentum_line(case, h),
         *_collision_force_line(case, ds),
+        *_conveying_lines(case, ds),
         f"  wall time    gas {t.get('gas_solve', 0):.1f} s, Lagrangian {t.get('lagrangian', 0):.1f} s, "
         f"checkpoints {t.get('checkpoint', 0):.1f} s, total {t.get('total', 0):.1f} s",
         f"  written      {out}",
     ]
     return "\n".join(lines)
+
+
+def _conveying_lines(case, ds) -> list[str]:
+    """The conveying engineer's numbers: total pressure drop [Pa] and the saltation check
+    (eulag.check, fluids.saltation)."""
+    from eulag import check
+
+    lines = [check.total_pressure_drop_line(ds), check.saltation_line(case)]
+    return [ln for text in lines if text for ln in text.splitlines()]
 
 
 def _criteria_lines(loop) -> list[str]:
@@ -422,7 +431,7 @@ def cmd_export(args) -> int:
         raise _Fail(f"{src}: no such dataset file", EXIT_BAD_INPUT)
     try:
         written = export.export_vts(src, Path(args.target))
-    except ValueError as exc:
+    except (ValueError, export.ExportError) as exc:
         raise _Fail(str(exc), EXIT_BAD_INPUT) from None
     print(written if written is not None else args.target)
     return EXIT_OK

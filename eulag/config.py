@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import inspect
 import math
 import re
 import tomllib
@@ -965,3 +966,66 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+# ---------------------------------------------------------------------------- key reference
+def _docstring_entries(cls) -> dict[str, str]:
+    """``name -> text`` of the numpy-style Attributes section of a section class's docstring."""
+    doc = inspect.getdoc(cls) or ""
+    out: dict[str, str] = {}
+    current = None
+    for line in doc.splitlines():
+        head = re.match(r"^([a-z_][a-z0-9_]*) : ", line)
+        if head:
+            current = head.group(1)
+            out[current] = ""
+        elif current is not None and line.startswith("    "):
+            out[current] = (out[current] + " " + line.strip()).strip()
+        elif current is not None and not line.strip():
+            continue
+        else:
+            current = None
+    return out
+
+
+def key_reference() -> str:
+    """The case-file key reference (Markdown): every key of every section with its type and
+    allowed range, default, units and meaning, generated from the schema above.
+
+    ``python -m eulag.config docs/case-reference.md`` writes it; a test checks that the
+    committed file is current."""
+    lines = ["# Case-file reference", "",
+             "Generated from the case schema (`eulag/config.py`) by "
+             "`python -m eulag.config docs/case-reference.md`; do not edit by hand.", "",
+             "A case file is TOML. Top-level keys: `name` (default: the file's stem), `description`, and "
+             "`model` (`\"euler-lagrange\"`, the default; `\"dem-darcy\"` and `\"two-fluid\"` cases are "
+             "validated by their own models). Every key below is written into the result dataset as a "
+             "global attribute `case_<section>_<key>`, defaults included.", ""]
+    for name, cls in _SECTIONS.items():
+        first = (inspect.getdoc(cls) or "").split("\n\n")[0].replace("\n", " ")
+        lines += [f"## `[{name}]`", "", first, "",
+                  "| key | allowed | default | units | meaning |", "|---|---|---|---|---|"]
+        docs = _docstring_entries(cls)
+        for f in _public_fields(cls):
+            meta = f.metadata
+            if f.default is MISSING:
+                default = "required"
+            elif f.default is None:
+                default = meta["none_label"] if meta["optional"] else "automatic (see meaning)"
+            else:
+                default = f"`{_fmt(f.default)}`"
+            allowed = _allowed({**meta, "doc": "", "unit": ""}).replace("|", "\\|")
+            meaning = (docs.get(f.name) or meta["doc"]).replace("|", "\\|")
+            lines.append(f"| `{f.name}` | {allowed} | {default} | {meta['unit'] or '-'} | {meaning} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":  # python -m eulag.config [docs/case-reference.md]
+    import sys
+
+    text = key_reference()
+    if len(sys.argv) > 1:
+        Path(sys.argv[1]).write_text(text, encoding="utf-8")
+    else:
+        print(text)

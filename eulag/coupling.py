@@ -286,7 +286,7 @@ class Criterion:
     what: str
 
     def line(self) -> str:
-        rel = "<" if self.met else ">="
+        rel = "<" if self.value < self.threshold else ">="
         return f"{self.name} {self.value:.3g} {rel} {self.threshold:g} ({self.what})"
 
 
@@ -306,9 +306,11 @@ def convergence_criteria(history, gas_converged, tolerance, collisions=True) -> 
                       "stations of the last gas solve not converged: 0 = none")]
     res = float(h.residual[-1]) if h.residual else math.nan
     enough = len(h.residual) >= _INTEGRAL_PASSES + 1
-    crit.append(Criterion("residual", res if enough else math.inf, tolerance,
+    crit.append(Criterion("residual", res if math.isfinite(res) else math.inf, tolerance,
                           bool(enough and res < tolerance),
-                          "RMS change of the relaxed sources over their noise"))
+                          "RMS change of the relaxed sources over their noise"
+                          + ("" if enough else f"; judged from pass {_INTEGRAL_PASSES + 1} on, "
+                             f"this was pass {len(h.residual)}")))
     if len(h.pressure_gradient) >= 2:
         ahead = pressure_gradient_to_come(h.pressure_gradient, h.relaxation)[1]
     else:
