@@ -139,7 +139,7 @@ class _Solver:
         if np.any(bad):
             c = int(np.flatnonzero(bad)[0])
             j, k = divmod(c, self.sec.nt)
-            raise SectionDivergence(f"{name} = {v[c]!r} in cell {c} (ring {j}, sector {k}) at iteration {it}")
+            raise SectionDivergence(f"{name} = {float(v[c])!r} in cell {c} (ring {j}, sector {k}) at iteration {it}")
 
     def laplacian(self, gamma_f):
         sec = self.sec
@@ -208,6 +208,7 @@ class _Solver:
         G = pb.u_g * self.Atot / qg1
         u = G * u1
         self.tau_sw = tau
+        self.hg, self.hs = hg, hs
         return u[:n], u[n:], G
 
     # ------------------------------------------------------------ granular temperature
@@ -243,6 +244,10 @@ class _Solver:
         return pf + lun_solids_pressure(x, pb.rho_s, theta, g0, P.e_ss)
 
     def distribute(self, st, c, steps):
+        with np.errstate(all="ignore"):
+            return self._distribute(st, c, steps)
+
+    def _distribute(self, st, c, steps):
         pb, sec, P = self.pb, self.sec, self.pb.params
         n, A = self.n, self.A
         a_f = np.clip(0.5 * (st.alpha[sec.P] + st.alpha[sec.N]), 1e-8, P.alpha_max - 1e-4)

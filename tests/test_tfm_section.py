@@ -1,0 +1,92 @@
+"""The fully developed two-fluid cross-section (tfm.section through eulag.two_fluid): mass flows
+matched, a deposit at the bottom carried by friction, no NaN, one-line validation errors,
+checkpoints and resume.  Small meshes (fast)."""
+
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from eulag.two_fluid import problem_from_case, run_two_fluid, validate_two_fluid_case
+from tfm.section import SectionDivergence, _Solver
+
+CASES = Path(__file__).resolve().parent.parent / "cases" / "two_fluid"
+
+
+def small_case(qs="0.8", model="berzi", nr=8, nt=16):
+    case = tomllib.loads((CASES / f"ding_qs{qs}.toml").read_text())
+    case["friction"]["model"] = model
+    case["numerics"].update(radial_cells=nr, azimuthal_cells=nt)
+    return case
+
+
+@pytest.mark.parametrize("qs", ["0.4", "0.6", "0.8", "1.0", "1.2"])
+def test_packaged_cases_validate(qs):
+    case = tomllib.loads((CASES / f"ding_qs{qs}.toml").read_text())
+    validate_two_fluid_case(case)
+    assert case["model"] == "two-fluid"
+
+
+@pytest.mark.parametrize("section, key, value, message", [
+    ("friction", "model", "schaeffer", r'^friction.model = "schaeffer": allowed one of dartevelle, '),
+    ("pipe", "diameter", -0.01, r"^pipe.diameter = -0.01: allowed a number > 0"),
+    ("numerics", "azimuthal_cells", 15, r"^numerics.azimuthal_cells = 15: allowed an even integer"),
+    ("friction", "internal_friction_angle", 32.0, r"^friction.internal_friction_angle = 32.0: allowed keys of \[friction\]"),
+])
+def test_validation_errors_are_one_line(section, key, value, message):
+    case = small_case()
+    case[section][key] = value
+    with pytest.raises(ValueError, match=message) as err:
+        validate_two_fluid_case(case)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("model", ["berzi", "dartevelle", "srivastava-sundaresan"])
+def test_section_matches_flows_and_forms_a_deposit(model):
+    case = small_case(model=model)
+    pb = problem_from_case(case)
+    s = _Solver(pb)
+    st, ok, c = s.run(s.initial_state())
+    assert ok
+    for v in (st.alpha, st.ug, st.us, st.theta, c["pf"], c["muf"]):
+        assert np.all(np.isfinite(v))
+    A = s.A
+    # gas flow U_g A (G is the factor that sets it; relaxed iterate), solids flow M_s, within the tolerance
+    assert np.sum((1 - st.alpha) * st.ug * A) == pytest.approx(pb.u_g * s.Atot, rel=1e-5)
+    assert np.sum(st.alpha * pb.rho_s * st.us * A) == pytest.approx(pb.m_s, rel=1e-3)
+    # a deposit at the bottom: bottom half holds most of the solids, with alpha_s above alpha_min there
+    bottom = s.sec.cy < 0
+    assert np.sum((st.alpha * A)[bottom]) > 2 * np.sum((st.alpha * A)[~bottom])
+    assert st.alpha.max() > pb.params.alpha_min and st.alpha.max() < pb.params.alpha_max
+    # friction only where alpha_s > alpha_min, i.e. in the bottom part
+    assert np.all(c["pf"][st.alpha <= pb.params.alpha_min] == 0.0)
+    assert np.all(s.sec.cy[c["pf"] > 0] < 0)
+    # -dp/dx above the gas-alone value (Colebrook, smooth, Re = rho U D / mu)
+    from fluids.friction import Colebrook
+    re = pb.rho_g * pb.u_g * pb.diameter / pb.mu_g
+    g_gas = Colebrook(re, 0.0) / pb.diameter * 0.5 * pb.rho_g * pb.u_g**2
+    assert st.G > g_gas
+
+
+def test_divergence_names_variable_and_cell():
+    s = _Solver(problem_from_case(small_case()))
+    v = np.zeros(s.n)
+    v[37] = np.nan
+    with pytest.raises(SectionDivergence, match=r"^theta = nan in cell 37 \(ring 2, sector 5\) at iteration 4$"):
+        s.check("theta", v, 4)
+
+
+def test_run_writes_dataset_and_resume_reuses_it(tmp_path):
+    case = small_case(nr=6, nt=12)
+    out = tmp_path / "tf.nc"
+    ds = run_two_fluid(case, out)
+    assert out.is_file() and ds.attrs["converged"] == "true"
+    for name in ("gas_ux", "solids_ux", "solids_fraction", "granular_temperature", "frictional_pressure",
+                 "frictional_viscosity", "drag_coefficient", "pressure_gradient", "capped_cells"):
+        assert name in ds and "units" in ds[name].attrs
+    assert float(ds.pressure_drop) == pytest.approx(float(ds.pressure_gradient[0]) * 2.4)
+    again = run_two_fluid(case, out, resume=True)
+    assert again.attrs["time_total"] == ds.attrs["time_total"]  # reused, not recomputed
+    assert not math.isnan(float(again.pressure_drop))
