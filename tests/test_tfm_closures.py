@@ -147,3 +147,12 @@ def test_table1_inference_diameter_density_size():
     d = hinkle_particle_diameter(us / ug, 1650.0, RHO_G, 0.010)
     assert d.min() == pytest.approx(139e-6, abs=1.5e-6) and d.max() == pytest.approx(189e-6, abs=1.5e-6)
     assert hinkle_1953_solids_velocity(6.43, 160e-6, 1650.0, RHO_G, 0.010) == pytest.approx(6.09, abs=0.01)
+
+
+@pytest.mark.parametrize("module", ["tfm.drag", "tfm.kinetic", "tfm.friction", "tfm.wall", "tfm.inlet"])
+def test_docstring_examples_run(module):
+    import doctest
+    import importlib
+
+    result = doctest.testmod(importlib.import_module(module))
+    assert result.attempted > 0 and result.failed == 0
