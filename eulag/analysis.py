@@ -1,4 +1,4 @@
-"""Analysis of eulag datasets (DESIGN.md, "Dataset schema"): pure numpy/xarray functions.
+"""Analysis of eulag datasets: pure numpy/xarray functions.
 
 Everything here reads a dataset only (never the solvers). The cross-section is taken from
 the auxiliary coordinates ``y(r, theta)``, ``z(r, theta)`` and ``cell_area(r, theta)``:

@@ -1,4 +1,4 @@
-"""The ``eulag`` command line (DESIGN.md, "Command line").
+"""The ``eulag`` command line.
 
     eulag run CASE.toml|NAME [-o out.nc] [--parcels N] [--resume] [--quiet] [--no-plots]
                              [--dask-local N | --scheduler ADDRESS]

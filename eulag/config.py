@@ -2,7 +2,7 @@
 
 A case file has a few top-level keys (``name``, ``description``) and the tables
 ``[pipe]``, ``[gas]``, ``[particles]`` (absent: single-phase), ``[walls]``,
-``[physics]`` and ``[numerics]``; DESIGN.md lists the core keys. Every value is
+``[physics]`` and ``[numerics]``; docs/case-reference.md lists every key. Every value is
 checked for type, unit sense and range when the case is built, before any work
 starts. Anything wrong raises :class:`CaseError` with a one-line message naming
 the key (dotted, e.g. ``pipe.diameter``), the value and what is allowed::
@@ -423,7 +423,7 @@ class ParticleConfig(_Section):
 
 @dataclass(frozen=True, kw_only=True)
 class WallConfig(_Section):
-    """Particle-wall collisions on the rough wall (Sommerfeld & Huber 1999; PHYSICS.md §3, §12).
+    """Particle-wall collisions on the rough wall (Sommerfeld & Huber 1999).
 
     Attributes
     ----------
@@ -477,7 +477,7 @@ class PhysicsConfig(_Section):
     c_eps3 : float
         C_eps3 of the dissipation source S_eps = C_eps3 (eps/k) S_k [1], in [0, 3] (default 1.8,
         the seed's). With C_eps3 > C_eps1 = 1.44 the k-eps equations have no positive local
-        equilibrium where the particle sink dominates (README, "Coupling"); an option for
+        equilibrium where the particle sink dominates; an option for
         sensitivity studies, not a tuning knob.
     k_source_scaling : str
         How the sampled turbulence source S_k = -<u'_F . J> enters the gas: ``"seen-energy"``
@@ -491,10 +491,8 @@ class PhysicsConfig(_Section):
         correlation R(St) = exp(-0.55 St^0.4): ``"particle"`` (default; at the real particle,
         with T_L of the gas at its position) or ``"cell"`` (once per cell, from the cell-mean
         slip of the statistics and the cell-centre k, eps of the gas the pass runs in). Same
-        constants; the partner is drawn about the cell mean either way (README "Coupling" 6: a
-        per-particle R that varies across the wall cell makes the collisions' net momentum
-        non-zero). Every committed study result ran with ``"particle"``; ``"cell"`` has not yet
-        finished a coupled run.
+        constants; the partner is drawn about the cell mean either way (a per-particle R that
+        varies across the wall cell makes the collisions' net momentum non-zero).
     partner_momentum : str
         What becomes of the impulse the fictitious collision partners would receive:
         ``"discarded"`` (default; Sommerfeld 2001, only the real particle is updated, so the
@@ -583,7 +581,7 @@ class NumericsConfig(_Section):
     gas_iterations_per_pass : int
         Outer-iteration cap of the periodic gas solve between two Lagrangian passes, >= 1
         (default 300): the coupling loop iterates on, so each gas solve need not converge
-        fully (PHYSICS.md §5.2); convergence of the run requires the last one to.
+        fully; convergence of the run requires the last one to.
     step_factor : float
         Factor c of the particle time step c · min(...) [1], in (0, 1] (default 0.5).
     batch_size : int
@@ -663,9 +661,38 @@ _SECTIONS: dict[str, type[_Section]] = {
     "physics": PhysicsConfig,
     "numerics": NumericsConfig,
 }
-_TOP_KEYS = ["name", "description", "model", *_SECTIONS]
+_TOP_KEYS = ["name", "description", "model", "profile", *_SECTIONS]
 
-#: Case keys added after run records and checkpoints began (c4a33a1), each with the value that
+#: Where eulag's model departs from the reference paper's (Laín & Sommerfeld; the rough wall of
+#: Sommerfeld & Huber 1999 as the paper uses it), each departure a case key:
+#: key -> (eulag's default, the paper's form, what it is).  ``profile = "paper"`` in a case file
+#: takes the paper's form for every one of them the file does not set; the ablation study
+#: (``eulag study scenes-ablation``) switches them one at a time.
+DEVIATIONS: dict[str, tuple[Any, Any, str]] = {
+    "walls.impact_angle": ("effective", "nominal",
+                           "angle in e_w(alpha), mu_w(alpha): alpha + gamma, or the impact angle alpha "
+                           "(the paper does not say which; Sommerfeld & Huber 1999 tabulate them against "
+                           "the impact angle)"),
+    "walls.lateral_roughness": (True, False, "a lateral roughness angle gamma_2 beside the in-plane gamma_1"),
+    "walls.shadow_effect": ("weighted", "rejection",
+                            "shadow effect: the sin(alpha + gamma)-weighted pdf, or rejection of "
+                            "alpha + gamma <= 0 (Sommerfeld & Huber 1999)"),
+    "physics.k_source_scaling": ("seen-energy", "none", "S_k rescaled by k/k_seen per cell, or as sampled"),
+    "physics.partner_momentum": ("discarded", "discarded",
+                                 "the fictitious partners' impulse: discarded (Sommerfeld 2001), or "
+                                 "returned to the cell's particles"),
+    "numerics.step_rule": ("default", "paper",
+                           "particle time step: 0.5 min(T_L, cell crossing, 0.1/f_coll), or the paper's "
+                           "0.5 min(tau_p, T_L, tau_coll)"),
+}
+
+#: The values ``profile = "paper"`` sets (the paper's column of DEVIATIONS), as Case.replace takes them.
+PAPER_MODEL: dict[str, dict[str, Any]] = {}
+for _key, (_ours, _paper, _) in DEVIATIONS.items():
+    PAPER_MODEL.setdefault(_key.split(".")[0], {})[_key.split(".")[1]] = _paper
+PROFILES = ("eulag", "paper")
+
+#: Case keys added after the first stored run records and checkpoints, each with the value that
 #: does what eulag did before the key existed. A stored case without the key is the same case
 #: as one holding that value, so comparisons of stored cases drop it there
 #: (:func:`comparable_attrs`); the datasets' attributes keep every key.
@@ -767,6 +794,18 @@ class Case:
         for key in ("pipe", "gas"):
             if key not in d:
                 raise CaseError(f"{key}: missing (a required table); allowed: a table [{key}]")
+        profile = d.get("profile", "eulag")
+        if profile not in PROFILES:
+            raise CaseError(f"profile = {_fmt(profile)}: unknown profile; allowed: "
+                            + ", ".join(f'"{p}"' for p in PROFILES)
+                            + " (paper: the reference paper's model for every key of config.DEVIATIONS "
+                              "the file does not set)")
+        if profile == "paper":
+            d = dict(d)
+            for key, values in PAPER_MODEL.items():
+                table = d.get(key, {})
+                if isinstance(table, dict):
+                    d[key] = {**values, **table}
         for key, section_cls in _SECTIONS.items():
             if key in d:
                 kwargs[key] = section_cls._from_table(d[key])

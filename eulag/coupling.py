@@ -1,4 +1,4 @@
-"""The four-way coupling loop (Laín & Sommerfeld; PHYSICS.md §5): gas ⇄ Lagrangian passes.
+"""The four-way coupling loop (Laín & Sommerfeld): gas ⇄ Lagrangian passes.
 
     case = Case.from_toml("cases/tsuji_morikawa_200um.toml")
     for state in CouplingLoop(case):          # one PassState per Lagrangian pass
@@ -50,8 +50,8 @@ the start or the last change of α, and the best residual of the last W passes i
 10 % below the best of the W before, α is halved (not below 0.05) — unless the section-mean
 −dp/dx of those 2 W passes drifts steadily (trend above 3 standard errors, and more than 1 %
 still to come at this α: ``steady_drift``); then the residual measures the approach as much as
-the noise, and a halved α would only halve its pace (scene g at 13b776b: halved at passes 10
-and 18 while −dp/dx rose by 4–8 Pa/m per pass, 40 passes unconverged).  The halving lowers the
+the noise, and a halved α would only halve its pace (a 50 µm scene halved at passes 10 and 18
+while −dp/dx rose by 4–8 Pa/m per pass stayed unconverged after 40 passes).  The halving lowers the
 pass-to-pass noise the lagged fields carry into the next pass (it is what kept the residual of
 such cases at about 2) and damps an oscillating mode; each change is in the history
 (``relaxation``) and in the progress line.
@@ -64,11 +64,10 @@ stagnates again is halved for good), and not when fewer than W early passes are 
 averaged final passes would run at an α the loop has not judged).  At a small α
 the relaxed sources close only about α of their remaining gap per pass: η = 10 and the 0.3 m
 pipe, halved to 0.075 when their residual sat just above the tolerance, reached the residual
-of pure noise but still had 2.3 % and 1.3 % of −dp/dx to come after 40 passes (stability runs
-at 707bbfd).  Re-run with the rule (abd53b2), the pipe converged in 35 passes; η = 10 did not:
-the residual is not independent of α (the pass's sources respond to the noise the relaxed
-sources put into the gas), and at the recovered 0.15 it rose to ~2 again (it converged later
-with the linearised drag; results/HISTORY.md).
+of pure noise but still had 2.3 % and 1.3 % of −dp/dx to come after 40 passes; with the rule
+the pipe converged in 35 passes.  The residual is not independent of α (the pass's sources
+respond to the noise the relaxed sources put into the gas): η = 10 at the recovered 0.15 rose
+to ~2 again (docs/history.md).
 
 Convergence ("no longer changing beyond noise"): per cell the change of the relaxed sources,
 ΔS = α (S_pass − S_used_prev), is compared with its own statistical noise
@@ -131,7 +130,7 @@ _INTEGRAL_PASSES = 3
 #: trend per pass over the last COLLISION_MOMENTUM_PASSES passes times COLLISION_MOMENTUM_AHEAD
 #: (the statistics close at least a tenth of their gap to the particles per pass while
 #: f_coll τ_p ≤ 9).  Numerical choices of ours, not model constants.  The level itself need
-#: not vanish (README "Coupling", item 6) and is reported, not required to be small — up to
+#: not vanish and is reported, not required to be small — up to
 #: COLLISION_MOMENTUM_LIMIT, beyond which the loop stops (below).
 COLLISION_MOMENTUM_TOL = 0.02
 #: |net collision momentum| / inflow that, in each of COLLISION_MOMENTUM_LIMIT_PASSES passes
@@ -144,11 +143,11 @@ COLLISION_MOMENTUM_LIMIT_PASSES = 3
 COLLISION_MOMENTUM_PASSES = 6
 COLLISION_MOMENTUM_AHEAD = 10.0
 #: Weight of the newest pass in the collision statistics' mean velocity and spin (at least;
-#: the rest of the statistics take the case's α): a numerical choice (README "Coupling" 6).
+#: the rest of the statistics take the case's α): a numerical choice.
 STATISTICS_MEAN_WEIGHT = 0.5
 #: Apply the pass's part of the relaxed momentum source linearised in the gas velocity,
 #: α [S_pass + β (U_ref − U)] (module docstring, "Linearised drag"); False: the explicit
-#: relaxed source of the versions before 6f43b6b.
+#: relaxed source.
 #: The fixed point is the same either way.
 LINEARISED_DRAG = True
 
@@ -270,7 +269,7 @@ def collision_momentum_settled(history) -> bool:
     settled: less than COLLISION_MOMENTUM_TOL of change still to come.  The fictitious partners
     are drawn from the previous passes' cell statistics, which approach the particles by only
     1/(1 + f_coll τ_p) of the gap per pass; until then they inject momentum that the sources
-    and the pressure gradient may not yet show (README "Coupling", item 6)."""
+    and the pressure gradient may not yet show."""
     return collision_momentum_to_come(history) < COLLISION_MOMENTUM_TOL
 
 
@@ -592,7 +591,7 @@ class CouplingLoop:
     def statistics_weight(self):
         """The weight of the newest pass in the relaxed collision statistics: the case's
         relaxation, also after α was lowered for the gas. The statistics only damp the
-        dense/sparse alternation of the collision rate (README "Coupling" 4); held at a small
+        dense/sparse alternation of the collision rate; held at a small
         α they stay those of the first passes, and at collision rates far above 1/τ_p the
         stochastic partners drawn from them pull the particles toward stale velocities and
         inject momentum (scene h: +5.9 N against an inflow of 0.8 N at α = 0.075)."""
@@ -711,9 +710,10 @@ class CouplingLoop:
                 f"pass {m}: the stochastic inter-particle collisions gave the particles {excess:+.3g} of "
                 f"their axial momentum inflow (mean of the last {COLLISION_MOMENTUM_LIMIT_PASSES} passes, "
                 f"each beyond ±{COLLISION_MOMENTUM_LIMIT:g}, the loop's limit); real collisions conserve "
-                "momentum, so this is the fictitious-partner model's error (README \"Coupling\" 6"
-                + ('; physics.partner_correlation = "cell" removes the part that comes from R(St) '
-                   "varying inside a cell)" if self.case.physics.partner_correlation == "particle" else ")"))
+                "momentum, so this is the fictitious-partner model's error ("
+                + ('physics.partner_correlation = "cell" removes the part that comes from R(St) '
+                   "varying inside a cell; " if self.case.physics.partner_correlation == "particle" else "")
+                + 'physics.partner_momentum = "returned" gives the partners\' impulse back to the cell)')
         if self.phase == "final":
             self._add_to_window(sample)
             self.final_left -= 1
@@ -998,7 +998,7 @@ def _relax_statistics(old, new, alpha):
     The mean velocity and spin take the newest pass with weight max(α, STATISTICS_MEAN_WEIGHT):
     they approach the particles' own by only 1/(1 + f τ_p) of the gap per pass, blending at α
     slowed that further while the partners drawn about stale means inject momentum, but taken
-    unblended they joined the dense/sparse alternation of 50 µm scene e (README "Coupling" 6)."""
+    unblended they joined the dense/sparse alternation of 50 µm scene e."""
     from particles.layout import CS_OK, CS_RMS, CS_U, CS_WM, CS_WRMS
 
     both = (old[:, CS_OK] > 0) & (new[:, CS_OK] > 0)

@@ -1,4 +1,4 @@
-"""Self-describing NetCDF datasets (DESIGN.md, "Dataset schema").
+"""Self-describing NetCDF datasets.
 
 :func:`gas_dataset` turns a solved gas field into an :class:`xarray.Dataset` (CF-1.8,
 ``units`` and ``long_name`` on every variable, the whole case in the global attributes);

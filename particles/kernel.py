@@ -3,9 +3,9 @@
 ``make_tracker(options)`` builds, once per set of physics switches (memoised), the numba
 functions of a Lagrangian pass.  Switches are compile-time constants of the closures, so
 a scene that turns off Magnus lift, rotation or inter-particle collisions runs a kernel
-that does not contain them (DESIGN.md "Numba").
+that does not contain them.
 
-Per particle step (PHYSICS.md §2.3):
+Per particle step:
 
 1. fields at x_n (interpolated at the end of the previous step): U, k, ε, ∇×U, ∇k;
    u_F = U + u′_F;
@@ -27,7 +27,7 @@ Per particle step (PHYSICS.md §2.3):
    J = m[(u^{n+1} − u^n) − g′Δt] and u′_F·J);
 6. fields at x_{n+1}; the fluid velocity seen is updated by the Langevin model of
    Sommerfeld et al. (1993) with R_P = R_L(Δt) R_E(Δr), Δr = ∫(u_F − u_p)dt over the step, plus the
-   (1 − R_P) T_L ∂⟨u′_i u′_j⟩/∂x_j drift correction (PHYSICS.md §2);
+   (1 − R_P) T_L ∂⟨u′_i u′_j⟩/∂x_j drift correction;
 7. wall collision (collisions.wall, which also mirrors u′_n) and the stochastic
    inter-particle collision against a fictitious partner drawn from the previous pass's
    cell statistics (collisions.interparticle);
@@ -35,7 +35,7 @@ Per particle step (PHYSICS.md §2.3):
    backwards is reflected (counted); one exceeding the residence-time or step cap is
    stopped and counted STUCK; a non-finite state is counted LOST (must never happen).
 
-Collision velocity jumps are not part of J (DESIGN.md), so the momentum budget
+Collision velocity jumps are not part of J, so the momentum budget
 Σ Ṅ J = Σ Ṅ m [u_out − u_in − g′ t_res − Δu_wall − Δu_pp − Δu_inlet] closes to round-off.
 """
 
@@ -80,7 +80,7 @@ __all__ = ["PhysicsOptions", "make_motion", "make_tracker", "walk_segment", "MAX
 warnings.filterwarnings("ignore", message='Cannot cache compiled function "track_superbatch"',
                         category=NumbaWarning)
 
-C_T = 0.24  # T_L = C_T σ²/ε (Sommerfeld 2001; PHYSICS.md §2.1, §12)
+C_T = 0.24  # T_L = C_T σ²/ε (Sommerfeld 2001)
 C_L = 3.0  # L_E = C_L T_L σ
 NSTATE = 19  # per-parcel final state columns, see make_tracker
 MAX_SEGMENTS = 512  # cells one step may cross (a step crosses ~1; the rest goes to the last cell)
@@ -93,16 +93,16 @@ class PhysicsOptions:
     """Compile-time switches of the tracking kernel (one compiled kernel per combination).
 
     saffman_mei_lift, magnus_lift, rotation, langevin, drift_correction, gravity,
-    inter_particle_collisions : bool — terms of PHYSICS.md §1–§4 (magnus needs rotation).
+    inter_particle_collisions : bool — terms of docs/physics.md–§4 (magnus needs rotation).
     magnus_model : "lun-liu" | "oesterle-bui-dinh".
     step_rule : "default" | "paper".
     partner_correlation : "particle" | "cell" — where the Stokes number St = τ_p/T_L of the
         fictitious partner's correlation R(St) is taken: at the real particle (its step's τ_p,
         T_L of the gas at its position: in the wall cell ε follows the wall function, so R
-        varies across the cell; v0.1.0) or once per cell (the statistics' ``layout.CS_ST``,
+        varies across the cell) or once per cell (the statistics' ``layout.CS_ST``,
         ``tracking.cell_stokes``).  With the partner drawn
         about the cell mean, a per-particle R that varies together with u₁ − ū₁ inside a cell
-        makes the collisions' net momentum non-zero (README "Coupling" 6).
+        makes the collisions' net momentum non-zero.
     partner_momentum : "discarded" | "returned" — what becomes of the momentum the fictitious
         partners would have received.  "discarded" (Sommerfeld 2001): only the real particle
         is updated, so the collisions conserve momentum only while the partners' Gaussian
@@ -490,7 +490,7 @@ def make_tracker(options=PhysicsOptions()):
             _key_rng(rng_disp, seed, pass_, pid, STREAM_DISPERSION)
             _key_rng(rng_wall, seed, pass_, pid, STREAM_WALL)
             _key_rng(rng_pp, seed, pass_, pid, STREAM_COLLISION)
-            # ---- injection: uniform over the section, Gaussian velocity (seed; PHYSICS.md §12)
+            # ---- injection: uniform over the section, Gaussian velocity (seed)
             u1, u2 = next_uniform_pair(rng_inj)
             rr = r_contact * math.sqrt(u1)
             th = two_pi * u2
@@ -570,7 +570,7 @@ def make_tracker(options=PhysicsOptions()):
                 wsy = omega[1]
                 wsz = omega[2]
                 tau_step = _ADVANCE(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
-                # separation from the fluid element over the step, Δr = ∫(u_F − u_p)dt (PHYSICS.md §2.2)
+                # separation from the fluid element over the step, Δr = ∫(u_F − u_p)dt
                 drx = uf[0] * dt - (pos[0] - saved[0])
                 dry = uf[1] * dt - (pos[1] - saved[1])
                 drz = uf[2] * dt - (pos[2] - saved[2])
@@ -675,7 +675,7 @@ def make_tracker(options=PhysicsOptions()):
                     out[base + A_BETA] += w_m * rest * dt / tau_step
                 for c in range(3):
                     out[off_bud + B_J + c] += ndot * imp[c]
-                if returned:  # a velocity jump outside J, like the collisions' (DESIGN.md)
+                if returned:  # a velocity jump outside J, like the collisions'
                     vel[0] += kick0 * dt
                     vel[1] += kick1 * dt
                     vel[2] += kick2 * dt
@@ -700,7 +700,7 @@ def make_tracker(options=PhysicsOptions()):
                 ni, nj, nk = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
                                          radius, nu, dvals)
                 if langevin:
-                    src = dvals  # k, eps and grad k at the new position (PHYSICS.md §2.1)
+                    src = dvals  # k, eps and grad k at the new position
                     sig2n = 2.0 * src[F_K] / 3.0
                     sign = math.sqrt(sig2n)
                     t_ln = C_T * sig2n / src[F_EPS]

@@ -40,7 +40,7 @@ __all__ = ["ParticleSpec", "TrackSettings", "Sample", "track", "batch_plan", "GR
            "prepare_pass", "run_superbatch", "fold_superbatches", "make_sample", "cell_stokes"]
 
 GRAVITY = 9.81  # m s-2
-C_EPS3 = 1.8  # S_eps = C_eps3 (eps/k) S_k (seed; PHYSICS.md §5.1, §12)
+C_EPS3 = 1.8  # S_eps = C_eps3 (eps/k) S_k (seed)
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class ParticleSpec:
 
 def cell_stokes(stats, gas, spec):
     """Stokes number St = τ_p/T_L of each cell, (ncell,), for the partners' correlation
-    R(St) = exp(−0.55 St^0.4) (Sommerfeld 2001; PHYSICS.md §4.1) taken once per cell.
+    R(St) = exp(−0.55 St^0.4) (Sommerfeld 2001) taken once per cell.
 
     ``stats``: (ncell, NCS) cell statistics (their mean velocity gives the cell-mean slip of
     τ_p, Schiller–Naumann); T_L = C_T (2/3) k/ε from the gas cell-centre values.
@@ -76,7 +76,7 @@ def cell_stokes(stats, gas, spec):
     d = spec.diameter
     slip = np.sqrt((gas.ux.ravel() - stats[:, CS_U]) ** 2 + (gas.uy.ravel() - stats[:, CS_U + 1]) ** 2
                    + (gas.uz.ravel() - stats[:, CS_U + 2]) ** 2)
-    re_p = rho * d * slip / mu  # drag factor f_d of Schiller & Naumann (PHYSICS.md §1), Newton above 1000
+    re_p = rho * d * slip / mu  # drag factor f_d of Schiller & Naumann, Newton above 1000
     f_d = np.where(re_p > 1000.0, 0.44 * re_p / 24.0, 1.0 + 0.15 * re_p**0.687)
     tau_p = spec.density * d * d / (18.0 * mu * f_d)
     t_l = C_T * (2.0 / 3.0) * gas.k.ravel() / gas.epsilon.ravel()
@@ -366,7 +366,7 @@ class Sample:
         Number density, mean and rms velocity, mean and rms spin, the acceleration that
         returns the fictitious partners' momentum to the cell's particles (``CS_APP``: minus
         the collision jumps' net force over the particles' mass in the cell), the mean collision frequency
-        (PHYSICS.md §7, for the step limit; with the Sommerfeld correlation R(St), St = τ_p/T_L
+        (docs/physics.md, for the step limit; with the Sommerfeld correlation R(St), St = τ_p/T_L
         from the cell-mean slip and the gas k, ε when ``gas`` is given), that Stokes number
         (``cell_stokes``, ``CS_ST``; inf without ``gas``, i.e. uncorrelated partners; with
         ``partner_correlation = "cell"`` the partners' R takes it, and the coupling loop
