@@ -1,4 +1,4 @@
-"""Shared numba flags of the collision kernels (one place, as STYLE.md suggests).
+"""Shared numba flags of the collision kernels (kept in one place).
 
 JIT_FLAGS     every jitted function: compiled once, cached on disk.
 KERNEL_FLAGS  functions that take arrays but never allocate one: compiled without the numba
@@ -20,9 +20,9 @@ def _serialise_numba_cache():
 
     ``IndexDataCacheFile.save`` reads the index, picks the first free data-file number, and
     writes both back, unlocked: two processes compiling different variants of one function
-    (our kernels are closures built per option set) can both pick number N, and the index
-    entry that survives may point at the other variant's code.  Seen here: a four-way pass was
-    served the tracking kernel compiled without inter-particle collisions.  Saves and loads now
+    (eulag's kernels are closures built per option set) can both pick number N, and the index
+    entry that survives may point at the other variant's code, so that, e.g., a four-way pass is
+    served the tracking kernel compiled without inter-particle collisions.  Saves and loads
     hold an exclusive lock on a file in the cache directory (POSIX; elsewhere unchanged), and
     every batch of a pass reports the option set it was compiled for (particles.tracking).
     """

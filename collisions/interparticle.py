@@ -1,26 +1,27 @@
 """Inter-particle collisions: binary hard-sphere kernel and the stochastic model of Sommerfeld (2001).
 
-PHYSICS.md §4 and §12 (items 6, 7, 9).  Per real particle and time step the
-stochastic model
+The model of docs/physics.md, section 6 "Inter-particle collisions".  Per real particle and
+time step the stochastic model
 
 1. builds a fictitious partner from the cell statistics of the previous pass:
    diameter D₂ (the caller draws it from the local size distribution, see
    ``sample_size_class``), velocity
        u₂ = ū₂ + R(St) u′₁ + σ₂ sqrt(1 − R²) ξ,  u′₁ = u₁ − ū₁,  ξ ~ N(0, 1) per component,
-       R(St) = exp(−0.55 St^0.4),  St = τ_p/T_L                   (Sommerfeld 2001; PHYSICS.md §4.1)
-   and angular velocity ω₂ = ω̄ (+ σ_ω ξ′ if the cell rms is given)   [§12.7]
+       R(St) = exp(−0.55 St^0.4),  St = τ_p/T_L                   (Sommerfeld 2001)
+   and angular velocity ω₂ = ω̄ (+ σ_ω ξ′ if the cell rms is given)
 2. collides with probability P = 1 − exp(−f Δt),
-       f = (π/4) (D₁ + D₂)² |u₁ − u₂| n_p                           [§12.9; Sommerfeld 2001]
+       f = (π/4) (D₁ + D₂)² |u₁ − u₂| n_p                           [Sommerfeld 2001]
    (P is never clipped: the exponential form is the Poisson probability of at
    least one collision in Δt)
 3. samples the impact point uniformly on the full collision disc (L = sqrt(U₁),
    ψ = 2π U₂, sin Φ = L) and applies the two-sphere impulse equations with
-   restitution e = 0.9 and friction μ = 0.4 (static = dynamic; seed) to the real
-   particle only; the partner is discarded                         [§4.1 step 5–6, §4.2]
+   restitution e = 0.9 and friction μ = 0.4 (static = dynamic; the reference paper of
+   Laín & Sommerfeld) to the real particle only; the partner is discarded
+                                                                   [Sommerfeld 2001]
 
 Masses enter only through m₂/(m₁ + m₂) = D₂³/(D₁³ + D₂³) (one material), so no
-density is needed.  Equation numbers of the papers are not quoted: they were not
-checked against the originals; PHYSICS.md gives the provenance of each formula.
+density is needed.  Equation numbers of the papers are not quoted (not checked against the
+originals); the references are listed in docs/physics.md.
 """
 
 import math
@@ -52,7 +53,7 @@ def sommerfeld_2001_correlation(stokes):
     """Velocity correlation of colliding particles R(St) = exp(−0.55 St^0.4) [-].
 
     stokes: St = τ_p/T_L [-] (τ_p particle response time, T_L fluid Lagrangian
-    integral time). Sommerfeld (2001), IJMF 27:1829–1858; PHYSICS.md §4.1 step 3.
+    integral time). Sommerfeld (2001), IJMF 27:1829–1858.
     R → 1 for St → 0 (tracers move with their neighbours), R → 0 for St → ∞.
     """
     return math.exp(-0.55 * stokes**0.4)
@@ -63,7 +64,7 @@ def kinetic_collision_frequency(d1, d2, number_density, relative_speed):
     """Collision frequency of one particle with a partner class, f = (π/4)(D₁ + D₂)² |g| n [1/s].
 
     d1, d2 [m]; number_density n [1/m3]; relative_speed |g| [m/s]. Kinetic theory of
-    hard spheres; Sommerfeld (2001); PHYSICS.md §4.1 step 4.
+    hard spheres; Sommerfeld (2001).
     """
     s = d1 + d2
     return _QUARTER_PI * s * s * relative_speed * number_density
@@ -73,7 +74,7 @@ def kinetic_collision_frequency(d1, d2, number_density, relative_speed):
 def collision_probability(frequency, dt):
     """P = 1 − exp(−f Δt) [-]: Poisson probability of at least one collision in Δt.
 
-    frequency [1/s], dt [s]. PHYSICS.md §12.9. Computed as −expm1(−f Δt) (accurate for
+    frequency [1/s], dt [s]. Computed as −expm1(−f Δt) (accurate for
     small f Δt); never clipped.
     """
     return -math.expm1(-frequency * dt)
@@ -88,7 +89,7 @@ def mean_collision_frequency(d1, d2, number_density, sigma1, sigma2, correlation
     part R u′₁ plus independent part σ₂ sqrt(1 − R²) ξ). Then g = u′₁ − u′₂ is Gaussian
     with per-component variance s² = (1 − R)² σ₁² + (1 − R²) σ₂² and
     ⟨|g|⟩ = s sqrt(8/π) (Maxwell distribution mean). For R = 0, σ₁ = σ₂ = σ:
-    ⟨|g|⟩ = 4σ/√π (PHYSICS.md §7). Useful for the step-size limit 0.1/f_coll.
+    ⟨|g|⟩ = 4σ/√π. Useful for the step-size limit 0.1/f_coll.
     """
     s2 = (1.0 - correlation) ** 2 * sigma1 * sigma1 + (1.0 - correlation * correlation) * sigma2 * sigma2
     return kinetic_collision_frequency(d1, d2, number_density, math.sqrt(s2 * 8.0 / math.pi))
@@ -121,7 +122,7 @@ def impact_normal(gx, gy, gz, u1, u2):
     g = u₁ − u₂ [m/s] (|g| > 0); u1, u2 uniforms in [0, 1). In the partner's rest frame,
     with ĝ = g/|g| and any orthonormal e₁, e₂ ⊥ ĝ: L = sqrt(u1) (pdf 2L on [0, 1]),
     ψ = 2π u2, sin Φ = L, n = cos Φ ĝ + sin Φ (cos ψ e₁ + sin ψ e₂); hence g·n = |g| cos Φ ≥ 0.
-    Sommerfeld (2001) (L, Y, Z, Φ, Ψ construction); PHYSICS.md §4.1 step 5 (full disc).
+    Sommerfeld (2001) (L, Y, Z, Φ, Ψ construction), over the full disc.
     """
     g = math.sqrt(gx * gx + gy * gy + gz * gz)
     hx = gx / g
@@ -158,8 +159,9 @@ def impact_normal(gx, gy, gz, u1, u2):
 def hard_sphere_pair_impulse(gx, gy, gz, sx, sy, sz, nx, ny, nz, e, mu):
     """Impulse per reduced mass J/m* on sphere 1 in a collision of two hard spheres.
 
-    PHYSICS.md §4.2 (vector form of the impulse equations of Sommerfeld 2001 and Crowe et al.
-    2012; checked there for momentum conservation and the stick condition).
+    Vector form of the impulse equations of Sommerfeld (2001) and Crowe et al. (2012); the tests
+    check the conservation of momentum and angular momentum and the exact normal restitution
+    (docs/validation.md, "Particles").
     g = u₁ − u₂ [m/s]; s = r₁ ω₁ + r₂ ω₂ [m/s]; n unit line of centres from 1 to 2 with
     g_n = g·n > 0; e, mu [-].  G = g + s × n, G_t = G − (G·n) n:
 
@@ -203,7 +205,7 @@ def hard_sphere_pair(u1, w1, d1, u2, w2, d2, n, e, mu):
     m* = m₁m₂/(m₁+m₂), J from ``hard_sphere_pair_impulse``:
 
         u₁′ = u₁ + J/m₁,  u₂′ = u₂ − J/m₂,
-        ω₁′ = ω₁ + 5/(2 m₁ r₁) n × J_t,  ω₂′ = ω₂ + 5/(2 m₂ r₂) n × J_t     (PHYSICS.md §4.2)
+        ω₁′ = ω₁ + 5/(2 m₁ r₁) n × J_t,  ω₂′ = ω₂ + 5/(2 m₂ r₂) n × J_t
 
     Conserves linear and angular momentum; kinetic energy does not increase for e ≤ 1.
     Returns the status of ``hard_sphere_pair_impulse`` (no change if not approaching).
@@ -272,8 +274,9 @@ def chi3_tail_probability(k):
 class InterparticleOptions:
     """Compile-time constants of the stochastic collision kernel.
 
-    restitution : e [-] (seed: 0.9);  friction : μ [-], static = dynamic (seed: 0.4).
-    rotation : include spin in the contact velocity and update ω (PHYSICS.md §4.2, §12.7);
+    restitution : e [-] (reference paper: 0.9);  friction : μ [-], static = dynamic (reference
+        paper: 0.4).
+    rotation : include spin in the contact velocity and update ω (docs/physics.md, section 6);
         if False, both spins are taken as zero and ω is not touched.
     majorant_radius : K of the exact thinning (see ``make_interparticle_collision``); any
         K > 0 gives the same statistics, K = 5 makes the tail branch rare (1.5e-5) and the
@@ -319,7 +322,7 @@ def make_interparticle_collision(options=InterparticleOptions()):
     number_density  n_p of real particles in the cell [1/m3] (of the partner class if the
               caller draws from a per-class pdf, else the total)
     stokes    St = τ_p/T_L [-] (R = exp(−0.55 St^0.4)): of the real particle, or of its cell
-              (the tracker's ``partner_correlation``; README "Coupling" 6)
+              (the tracker's ``partner_correlation``; docs/physics.md, section 6)
     dt        time step [s]
     rng       int64[5] state of ``collisions.random`` (stream STREAM_COLLISION; advanced)
     dv        float64[3] collision velocity jump accumulator [m/s] (+= v_after − v_before)

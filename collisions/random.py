@@ -11,8 +11,8 @@ hidden generator state: the caller keeps a draw counter per parcel and stream.
 Generator: Philox-4x32-10 (Salmon, Moraes, Dror & Shaw 2011, "Parallel random
 numbers: as easy as 1, 2, 3", SC'11), the counter-based generator of
 Random123, cuRAND and numpy's ``Philox`` family.  It maps a 128-bit counter
-and a 64-bit key to 128 random bits; the implementation is checked against
-the Random123 known-answer vectors in ``tests/test_collisions_random.py``.
+and a 64-bit key to 128 random bits; the test suite checks the implementation
+against the Random123 known-answer vectors.
 
 Key layout (64-bit key, 128-bit counter, four 32-bit words):
 

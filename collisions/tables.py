@@ -87,8 +87,9 @@ def rebound_angle_table(impact_angles_deg=IMPACT_ANGLES_DEG, roughness_std_deg=R
 def impact_angle_sensitivity(impact_angles_deg=IMPACT_ANGLES_DEG, dgamma_deg=5.0, samples=20000, seed=1):
     """Sensitivity to evaluating e_w, μ_w at the effective (α + γ₁) or the nominal (α) angle.
 
-    PHYSICS.md §3.1 / §12.1. Returns {option: (mean rebound angle [deg], mean |v′|/|v| [-])},
-    each an array over ``impact_angles_deg``, for roughness ``dgamma_deg`` [deg].
+    docs/physics.md, sections 5 and 7. Returns {option: (mean rebound angle [deg],
+    mean |v′|/|v| [-])}, each an array over ``impact_angles_deg``, for roughness
+    ``dgamma_deg`` [deg].
     """
     result = {}
     out = np.empty(samples)

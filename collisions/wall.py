@@ -1,33 +1,36 @@
 """Particle–wall collision with a rough pipe wall (Sommerfeld & Huber 1999).
 
-PHYSICS.md §3 and §12 (items 1, 2, 3, 10, 11).  Geometry: the pipe wall is the
-cylinder y² + z² = R² (x along the axis, y up, z horizontal); at a particle
-centre (x, y, z) with r = sqrt(y² + z²) the inward wall normal is
-n₀ = −(0, y, z)/r.  The centre touches the wall when r = R − r_p.
+The model of docs/physics.md, section 5 "Particle–wall collisions"; where it departs from
+the reference paper (Laín & Sommerfeld), section 7 "Departures from the reference paper"
+lists the departure and its option.  Geometry: the pipe wall is the cylinder y² + z² = R²
+(x along the axis, y up, z horizontal); at a particle centre (x, y, z) with
+r = sqrt(y² + z²) the inward wall normal is n₀ = −(0, y, z)/r.  The centre touches the
+wall when r = R − r_p.
 
 One impact, in order (``make_wall_collision`` builds the kernel):
 
 1. nominal impact angle α = arcsin(−v·n₀/|v|) and the impact-plane frame
-   t₀ (tangential), b₀ = n₀ × t₀ (lateral)                        [§3.3]
+   t₀ (tangential), b₀ = n₀ × t₀ (lateral)
 2. in-plane roughness angle γ₁ from the shadow-effect pdf
-   f_eff(γ; α) ∝ N(γ; 0, Δγ) sin(α + γ), α + γ > 0              [§3.2; Sommerfeld 2003,
+   f_eff(γ; α) ∝ N(γ; 0, Δγ) sin(α + γ), α + γ > 0              [Sommerfeld 2003;
    Sommerfeld & Kussin 2004]; option: simple rejection of α + γ ≤ 0 (Sommerfeld & Huber 1999)
-3. lateral roughness angle γ₂ ~ N(0, Δγ) (option: none)           [§3.3, §12.2]
+3. lateral roughness angle γ₂ ~ N(0, Δγ) (option: none)           [not stated in the paper]
 4. virtual-wall normal n″ = cos γ₂ (cos γ₁ n₀ − sin γ₁ t₀) + sin γ₂ b₀
 5. e_w = max(0.8, 1 − 0.01 α_c), μ_w = max(0.1, 0.4 − 0.015 α_c), α_c [deg] the
-   effective angle α + γ₁ (option: nominal α)                     [§3.1, §12.1; seed]
-6. hard-sphere impulse rebound on n″, sliding or sticking, with spin [§3.4]
+   effective angle α + γ₁ (option: nominal α)   [Sommerfeld & Huber 1999; angle: section 7]
+6. hard-sphere impulse rebound on n″, sliding or sticking, with spin
+                                               [Sommerfeld & Huber 1999; Crowe et al. 2012]
 7. if the rebound does not leave the real wall (v′·n₀ ≤ 0), impact again with a
-   new roughness angle, at most ``max_impacts`` times in all      [§3.3, "multiple collisions"]
+   new roughness angle, at most ``max_impacts`` times in all
 8. if the particle still does not leave, or leaves with a wall-normal speed
    below ``v_min`` (e.g. ``minimum_bounce_speed`` = speed gained falling one
    diameter), the impact becomes a *contact*: the incoming state hits the
    smooth real wall with e = 0 and Coulomb friction μ_w(α); the particle keeps
    moving along the wall, sliding or, once the contact point sticks, rolling.
    Repeated each step while it is pressed on the wall, the normal impulse
-   m |v_n| = F_n Δt makes this Coulomb friction μ F_n over the step  [§12.11]
+   m |v_n| = F_n Δt makes this Coulomb friction μ F_n over the step
 9. the normal component of the fluid velocity fluctuation seen is mirrored,
-   u′_F → u′_F − 2 (u′_F·n₀) n₀                                    [§12.10]
+   u′_F → u′_F − 2 (u′_F·n₀) n₀
 10. the centre is put back to r ≤ R − r_p (distance ≥ r_p from the wall,
     strictly inside the pipe) along its radial line.
 
@@ -76,7 +79,7 @@ def sommerfeld_huber_1999_restitution(alpha_deg):
     """Wall restitution e_w = max(0.8, 1 − 0.01 α) [-], α [deg].
 
     Glass beads on steel, fit to Sommerfeld & Huber (1999) as used by Laín & Sommerfeld
-    (seed, the unnumbered equation after eq. 15); PHYSICS.md §3.1. Floor reached at α = 20°.
+    (the reference paper, the unnumbered equation after its eq. 15). Floor reached at α = 20°.
     """
     return max(0.8, 1.0 - 0.01 * alpha_deg)
 
@@ -94,8 +97,8 @@ def sommerfeld_huber_1999_friction(alpha_deg):
 def minimum_bounce_speed(diameter, gravity=GRAVITY):
     """Wall-normal speed gained falling one particle diameter, sqrt(2 g D_p) [m/s].
 
-    diameter [m], gravity [m/s2]. PHYSICS.md §12.11: rebounds slower than this are
-    treated as contact (sliding/rolling) instead of a bounce.
+    diameter [m], gravity [m/s2]. Rebounds slower than this are treated as contact
+    (sliding/rolling) instead of a bounce (docs/physics.md, section 5).
     """
     return math.sqrt(2.0 * gravity * diameter)
 
@@ -106,8 +109,8 @@ def roughness_angle_effective_pdf(alpha, dgamma, rng):
 
         f_eff(γ; α) ∝ N(γ; 0, Δγ) · sin(α + γ)   for 0 < α + γ < π,   0 otherwise
 
-    (PHYSICS.md §3.2).  alpha: nominal impact angle [rad], 0 ≤ α ≤ π/2; dgamma: Δγ [rad];
-    rng: int64[5] state of ``collisions.random`` (advanced).  Δγ ≤ 0 gives γ = 0.
+    alpha: nominal impact angle [rad], 0 ≤ α ≤ π/2; dgamma: Δγ [rad]; rng: int64[5] state of
+    ``collisions.random`` (advanced).  Δγ ≤ 0 gives γ = 0.
 
     Exact rejection sampler with a tight envelope, efficient also for α → 0 and small Δγ,
     where drawing γ ~ N(0, Δγ) and accepting with probability sin(α + γ) accepts only a
@@ -141,8 +144,8 @@ def roughness_angle_effective_pdf(alpha, dgamma, rng):
 def roughness_angle_simple(alpha, dgamma, rng):
     """Roughness angle γ ~ N(0, Δγ) [rad], redrawn while α + γ ≤ 0 (Sommerfeld & Huber 1999).
 
-    The simple shadow effect of PHYSICS.md §3.2 (also redrawn if α + γ ≥ π, which needs a
-    > 9σ draw).  alpha, dgamma [rad]; rng advanced.
+    The simple shadow effect (also redrawn if α + γ ≥ π, which needs a > 9σ draw).
+    alpha, dgamma [rad]; rng advanced.
     """
     if dgamma <= 0.0:
         return 0.0
@@ -157,9 +160,8 @@ def roughness_angle_simple(alpha, dgamma, rng):
 def hard_sphere_wall_rebound(vel, omega, nx, ny, nz, r_p, e, mu, rotation):
     """Hard-sphere impact of a sphere on a plane wall with unit normal n (into the fluid).
 
-    PHYSICS.md §3.4 (vector form of the sliding / non-sliding impulse equations of
-    Sommerfeld & Huber 1999 and Crowe et al. 2012).  With v_n = v·n < 0, G = v − r_p ω × n,
-    G_t = G − (G·n) n:
+    Vector form of the sliding / non-sliding impulse equations of Sommerfeld & Huber (1999) and
+    Crowe et al. (2012).  With v_n = v·n < 0, G = v − r_p ω × n, G_t = G − (G·n) n:
 
         non-sliding if |G_t| ≤ (7/2) μ (1 + e) |v_n|:
             v′ = v − (1+e) v_n n − (2/7) G_t,        ω′ = ω + 5/(7 r_p) n × G_t
@@ -261,13 +263,15 @@ class WallOptions:
     """Switches and coefficients of the rough-wall model (compile-time constants of the kernel).
 
     restitution, friction : (value at 0°, slope [1/deg], floor) of e_w, μ_w = max(floor,
-        value − slope·α) — default Sommerfeld & Huber (1999) as in the seed (PHYSICS.md §3.1).
-    impact_angle : angle of e_w, μ_w: "effective" (α + γ₁, default, §12.1) or "nominal" (α).
-    shadow_effect : "weighted" (the sin(α + γ)-weighted effective pdf, default, §12.3) or
+        value − slope·α) — default Sommerfeld & Huber (1999) as in the reference paper.
+    impact_angle : angle of e_w, μ_w: "effective" (α + γ₁, default) or "nominal" (α).
+    shadow_effect : "weighted" (the sin(α + γ)-weighted effective pdf, default) or
         "rejection" (only reject α + γ ≤ 0).
-    lateral_roughness : also tilt the wall laterally by γ₂ ~ N(0, Δγ) (default, §12.2).
+    lateral_roughness : also tilt the wall laterally by γ₂ ~ N(0, Δγ) (default).
     rotation : track the particle spin (else ω is zero in the impulse and not updated).
     max_impacts : cap on rough impacts per call before the contact regime takes over.
+
+    docs/physics.md, section 7, compares these defaults with the reference paper's forms.
 
     impact_angle, shadow_effect and lateral_roughness carry the names and values of the
     [walls] section of eulag.config; rotation is [physics] rotation.
@@ -314,7 +318,7 @@ def make_wall_collision(options=WallOptions()):
     omega    float64[3] particle angular velocity [rad/s] (in/out)
     u_fluid  float64[3] fluid velocity fluctuation seen [m/s] (in/out: normal part mirrored)
     dv       float64[3] collision velocity jump accumulator [m/s] (in/out: += v_after − v_before;
-             the tracker excludes it from the gas momentum source, DESIGN.md)
+             the tracker excludes it from the gas momentum source, docs/physics.md section 2)
     r_p [m] particle radius, pipe_radius [m], dgamma [rad] roughness std Δγ (0: smooth),
     v_min [m/s] minimum rebound wall-normal speed (``minimum_bounce_speed``; 0: always bounce),
     rng      int64[5] state of ``collisions.random`` (stream STREAM_WALL; advanced)
@@ -431,7 +435,8 @@ def make_wall_collision(options=WallOptions()):
             vel[2] -= vn * n0z
             status = WALL_ROLLING if stick else WALL_SLIDING
 
-        # fluid velocity fluctuation seen: mirror its wall-normal component (PHYSICS.md §12.10)
+        # fluid velocity fluctuation seen: mirror its wall-normal component
+        # (docs/physics.md, section 4)
         un = u_fluid[1] * n0y + u_fluid[2] * n0z
         u_fluid[1] -= 2.0 * un * n0y
         u_fluid[2] -= 2.0 * un * n0z
@@ -446,4 +451,4 @@ def make_wall_collision(options=WallOptions()):
 
 
 wall_collision = make_wall_collision(WallOptions())
-"""Default kernel (PHYSICS.md §12 choices); see ``make_wall_collision`` for the signature."""
+"""Default kernel (the defaults of docs/physics.md, section 7); see ``make_wall_collision``."""

@@ -14,7 +14,7 @@ mean-flow vorticity ∇ × U (3) into one contiguous array ``values[nx, nr, nt, 
 * ∇k (for the Langevin drift correction) is the exact gradient of the interpolated k, so
   the drift is consistent with the σ² = 2k/3 the dispersion model actually sees;
 * inside the wall-function cell (beyond the wall-ring centre, distance y from the wall less
-  than y_P) the log-law reconstruction of DESIGN.md / PHYSICS.md §6.2, with the wall-ring
+  than y_P) the log-law reconstruction (docs/physics.md, section 3), with the wall-ring
   values at the particle's (x, θ):
 
       U_t(y) = U_t,P g(y*)/g(y*_P),   g(y*) = ln(E y*)/κ  (y* ≥ y*_v),  g = y*  (y* < y*_v)

@@ -1,12 +1,15 @@
-"""Fluid-dynamic force and torque correlations on a sphere (PHYSICS.md §1, §12).
+"""Fluid-dynamic force and torque correlations on a sphere (docs/physics.md, section 3).
 
 One correlation per scalar function, named after its authors; every function is
 ``@njit`` and takes plain floats, so the tracking kernel calls them directly and the
-tests call them from Python.  Reynolds numbers (diameter-based throughout, PHYSICS.md §1.5):
+tests call them from Python.  Reynolds numbers (diameter-based throughout):
 
     Re_p = ρ_F D_p |u_rel| / μ_F          particle (slip) Reynolds number
     Re_S = ρ_F D_p² |ω_F| / μ_F           shear Reynolds number, ω_F = ∇ × U
     Re_r = ρ_F D_p² |Ω| / μ_F             rotational Reynolds number, Ω = ½ ∇ × U − ω_p
+
+Equation numbers are those of the reference paper of Laín & Sommerfeld (docs/physics.md,
+References).
 
 Force assembly (the tracker does it with vectors):
 
@@ -45,7 +48,7 @@ SAFFMAN_CONSTANT = 4.1126  # 2 · 6.46 / π (Saffman 1965/68, in Mei's coefficie
 def schiller_naumann_drag_coefficient(re_p):
     """C_D [-] of Schiller & Naumann (1933): 24/Re (1 + 0.15 Re^0.687) for Re_p ≤ 1000, 0.44 above.
 
-    re_p : particle Reynolds number [-], > 0.  PHYSICS.md §1.1; seed eq. 4.
+    re_p : particle Reynolds number [-], > 0.  Laín & Sommerfeld, eq. 4.
     """
     if re_p > 1000.0:
         return 0.44
@@ -77,7 +80,7 @@ def mei_1992_correction(re_p, re_s):
     """Mei's (1992) finite-Re correction f of the Saffman lift [-].
 
     β = 0.5 Re_S / Re_p;  f = (1 − 0.3314 β^0.5) exp(−Re_p/10) + 0.3314 β^0.5 for Re_p ≤ 40,
-    f = 0.0524 (β Re_p)^0.5 for Re_p > 40.  re_p > 0, re_s ≥ 0.  PHYSICS.md §1.2; seed eq. 7.
+    f = 0.0524 (β Re_p)^0.5 for Re_p > 40.  re_p > 0, re_s ≥ 0.  Laín & Sommerfeld, eq. 7.
     """
     beta = 0.5 * re_s / re_p
     if re_p <= 40.0:
@@ -91,7 +94,7 @@ def saffman_mei_lift_coefficient(re_p, re_s):
     """C_LS = 4.1126 / Re_S^0.5 · f(Re_p, Re_S) [-] (Saffman 1965/68 with Mei 1992).
 
     re_p > 0, re_s > 0 [-].  With f = 1 the force equals Saffman's 1.615 μ D |u_rel| Re_S^0.5.
-    PHYSICS.md §1.2; seed eqs. 6–7.
+    Laín & Sommerfeld, eqs. 6–7.
     """
     return SAFFMAN_CONSTANT / math.sqrt(re_s) * mei_1992_correction(re_p, re_s)
 
@@ -102,7 +105,7 @@ def lun_liu_1997_lift_coefficient(re_p, re_r):
 
     C_LR = Re_r/Re_p for Re_p ≤ 1 (Rubinow & Keller 1961), (Re_r/Re_p)(0.178 + 0.822 Re_p^−0.522)
     for Re_p > 1 (published for Re_p < 1000; used unchanged above).  re_p > 0, re_r ≥ 0
-    (diameter-based).  PHYSICS.md §1.3, §12; seed eqs. 8–9.
+    (diameter-based).  Laín & Sommerfeld, eqs. 8–9.
     """
     c = re_r / re_p
     if re_p <= 1.0:
@@ -115,7 +118,7 @@ def oesterle_bui_dinh_1998_lift_coefficient(re_p, re_r):
     """Slip-rotation lift coefficient C_LR [-] of Oesterlé & Bui Dinh (1998), Re_p < 140.
 
     C_LR = 0.45 + (Re_r/Re_p − 0.45) exp(−0.05684 Re_r^0.4 Re_p^0.3), diameter-based Re_r,
-    so that C_LR → Re_r/Re_p as Re_p → 0.  PHYSICS.md §1.3.
+    so that C_LR → Re_r/Re_p as Re_p → 0.
     """
     return 0.45 + (re_r / re_p - 0.45) * math.exp(-0.05684 * re_r**0.4 * re_p**0.3)
 
@@ -126,7 +129,8 @@ def dennis_1980_torque_coefficient(re_r):
 
     C_R = 64π/Re_r for Re_r ≤ 32 (Rubinow & Keller 1961, Stokes torque π μ D³ Ω);
     C_R = 12.9/Re_r^0.5 + 128.4/Re_r for 32 < Re_r (Dennis, Singh & Ingham 1980; valid to
-    about 1000).  PHYSICS.md §1.4 (row 1 of the table), §12; seed eqs. 10–11.
+    about 1000).  The constants 12.9/128.4 are the diameter-based form of the 6.45/32.1 quoted
+    with the radius-based Re_r (docs/physics.md, section 3).  Laín & Sommerfeld, eqs. 10–11.
     """
     if re_r <= 32.0:
         return 64.0 * math.pi / re_r

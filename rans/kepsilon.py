@@ -1,7 +1,8 @@
 """Standard k-epsilon model constants and log-law wall functions.
 
 Launder, B.E., Spalding, D.B. (1974) The numerical computation of turbulent flows.
-Comput. Methods Appl. Mech. Eng. 3, 269-289 (constants, wall functions); see PHYSICS.md 6.1-6.2.
+Comput. Methods Appl. Mech. Eng. 3, 269-289 (constants, wall functions); see docs/physics.md,
+section 2 "Gas phase".
 """
 
 from __future__ import annotations
@@ -30,25 +31,26 @@ def viscous_edge_yplus(kappa=KAPPA, e_wall=E_WALL):
 
 #: [-] y* below which the wall cell is treated as viscous sublayer: where the two laws meet,
 #: 11.53 for kappa = 0.41, E = 9.8, so that the wall shear coefficient is continuous in k_P.
-#: (PHYSICS.md 6.2 gives 11.225, the crossing for kappa = 0.4187, E = 9.793; with this model's
-#: constants it left a 2 % jump in tau_w, and a wall cell whose y* sat at the switch cycled
-#: between the two laws -- a gas station of scene e never converged.)
+#: (The often-quoted 11.225 is the crossing for kappa = 0.4187, E = 9.793; with this model's
+#: constants it leaves a 2 % jump in tau_w, and a wall cell whose y* sits at the switch cycles
+#: between the two laws, so that its gas station does not converge.)
 YSTAR_LAMINAR = viscous_edge_yplus()
 
 
 def inlet_epsilon(k, diameter, length_scale_fraction=0.07):
     """Inlet dissipation from a mixing length l = 0.07 D: eps = C_mu^(3/4) k^(3/2) / l [m2 s-3].
 
-    k [m2 s-2], diameter [m].  Same choice as the OpenFOAM reference in shared/data.
+    k [m2 s-2], diameter [m].  The inlet condition of the reference problem (docs/physics.md,
+    section 1 "The reference problem").
     """
     return C_MU**0.75 * k**1.5 / (length_scale_fraction * diameter)
 
 
 def wall_shear_coefficient(k_p, y_p, density, viscosity):
-    """Coefficient c [kg m-2 s-1] with tau_w = c U_P (standard wall function, PHYSICS.md 6.2).
+    """Coefficient c [kg m-2 s-1] with tau_w = c U_P (wall function of Launder & Spalding 1974).
 
     tau_w = rho kappa C_mu^(1/4) k_P^(1/2) U_P / ln(E y*),  y* = rho C_mu^(1/4) k_P^(1/2) y_P / mu,
-    and the viscous law tau_w = mu U_P / y_P where y* <= 11.225.
+    and the viscous law tau_w = mu U_P / y_P where y* <= YSTAR_LAMINAR (11.53).
     k_p [m2 s-2], y_p wall distance of the cell centre [m], density [kg m-3], viscosity [Pa s].
     """
     u_star = C_MU**0.25 * np.sqrt(k_p)

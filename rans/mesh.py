@@ -1,7 +1,7 @@
 """Pipe mesh: axial stations x a polar (r, theta) cross-section with wall clustering.
 
-Coordinates (DESIGN.md): x along the pipe axis, y vertical up, z horizontal; in the
-cross-section z = r cos(theta), y = r sin(theta), so theta = 90 deg is the top of the pipe.
+Coordinates (docs/physics.md, conventions): x along the pipe axis, y vertical up, z horizontal;
+in the cross-section z = r cos(theta), y = r sin(theta), so theta = 90 deg is the top of the pipe.
 
 Cross-section layout
 --------------------

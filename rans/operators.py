@@ -195,10 +195,10 @@ class Section:
             if scheme == "hybrid":
                 # Spalding's hybrid in Patankar's (1980, §5.2) continuous form: central while it
                 # gives non-negative coefficients, pure upwind convection (no diffusion) beyond.
-                # (An earlier form kept D in the upwind branch; its coefficients jumped by D at
-                # the switch, and a face whose Peclet number sat at the switch flipped every
-                # outer iteration: a 2-cycle that kept stations from converging under strong
-                # particle sources, scene b.)
+                # (Keeping D in the upwind branch would make the coefficients jump by D at the
+                # switch; a face whose Peclet number sits at the switch then flips every outer
+                # iteration, a 2-cycle that keeps stations from converging under strong
+                # particle sources, as in scene b.)
                 cP = np.maximum(np.maximum(-flux, cP), 0.0)
                 cN = np.maximum(np.maximum(flux, cN), 0.0)
             elif scheme != "central":
@@ -213,17 +213,18 @@ class Section:
 
         (phi_N - phi_P)/delta is the radial derivative at the midpoint between the two ring
         centres, not at the face; the offset is O(h) and, in the wedge ring at the axis (no
-        inner face to cancel it) and the rings just outside, it left an O(1) truncation error
-        in the axisymmetric part of a field and a max-norm order of 1.74-1.84 in issue 2's
-        manufactured solution (1.87-2.14 with it).  On every radial face but the two next to
-        the wall ring the derivative is taken from the quadratic through three ring centres on
-        the ray; the difference from the two-point value, times gamma_f S_f, goes to the
-        right-hand side (lagged in the outer/station iterations, so the converged solution is
-        that of the corrected scheme).  The wall region, where wall functions set the near-wall
-        profile, keeps the two-point gradient; there the switch leaves ring nr-3 a first-order
-        (but local) truncation error.  Not corrected: the azimuthal faces of the wedge ring,
-        whose spacing is taken at the centroid (2/3 of the ring radius) -- exact for fields
-        linear in y and z, O(1) for the r^2 cos 2theta part of a field.  k and epsilon (upwind,
+        inner face to cancel it) and the rings just outside, it leaves an O(1) truncation error
+        in the axisymmetric part of a field and a max-norm order of 1.74-1.84 in the
+        manufactured-solution test (1.87-2.14 with the correction; docs/validation.md,
+        "Gas solver").  On every radial face but the two next to the wall ring the derivative
+        is taken from the quadratic through three ring centres on the ray; the difference from
+        the two-point value, times gamma_f S_f, goes to the right-hand side (lagged in the
+        outer/station iterations, so the converged solution is that of the corrected scheme).
+        The wall region, where wall functions set the near-wall profile, keeps the two-point
+        gradient; there the switch leaves ring nr-3 a first-order (but local) truncation error.
+        Not corrected: the azimuthal faces of the wedge ring, whose spacing is taken at the
+        centroid (2/3 of the ring radius) -- exact for fields linear in y and z, O(1) for the
+        r^2 cos 2theta part of a field.  k and epsilon (upwind,
         first order) do not use it: an explicit source of either sign would spoil the
         positivity of their M-matrix solves.
         """

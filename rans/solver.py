@@ -1,6 +1,6 @@
 """Steady k-epsilon RANS for incompressible air in a straight circular pipe.
 
-Method (DESIGN.md, "Numerical choices")
+Method (docs/numerics.md, "Gas solver")
 ---------------------------------------
 Space marching in the manner of Patankar & Spalding (1972): the pipe flow has no axial
 recirculation, so each axial station is a 2-D cross-section problem.  The axial
@@ -81,13 +81,13 @@ class Sources:
     the explicit source (the Rhie-Chow weights leave drag out for the same reason).
 
     c_eps3 (optional): the particle dissipation source is the closure C_eps3 (eps/k) S_k
-    (PHYSICS.md 5.1), evaluated in the solve with the iterate's eps/k, as C_eps1 (eps/k) P_k
-    is: the sink part of S_k (rate -S_k/k_reference) gives the linear eps sink of rate
-    C_eps3 (-S_k)/k_reference, a positive S_k the explicit source C_eps3 (eps/k) S_k.  It adds
-    to ``epsilon`` (then normally zero).  A source sampled in an earlier pass's eps/k and carried
-    through the under-relaxation would not follow eps when the turbulence collapses: near the
-    inlet eps/k is ~10^4 times its value downstream of a strong particle sink, and a positive
-    S_eps kept from there drove eps to overflow in the axis cell (scenes g, h at 4 eta0).
+    (docs/physics.md, section 2 "Gas phase"), evaluated in the solve with the iterate's eps/k,
+    as C_eps1 (eps/k) P_k is: the sink part of S_k (rate -S_k/k_reference) gives the linear
+    eps sink of rate C_eps3 (-S_k)/k_reference, a positive S_k the explicit source
+    C_eps3 (eps/k) S_k.  It adds to ``epsilon`` (then normally zero).  A source sampled in an
+    earlier pass's eps/k and carried through the under-relaxation would not follow eps when the
+    turbulence collapses: near the inlet eps/k is ~10^4 times its value downstream of a strong
+    particle sink, and a positive S_eps kept from there drives eps to overflow in the axis cell (scenes g, h at 4 eta0).
     """
 
     momentum: np.ndarray
@@ -225,7 +225,9 @@ STEADY_R2 = 0.9
 #: solve the cross-section equations with lagged factorisations, refined (rans.linalg.LaggedFactor);
 #: False: factorise every matrix (the reference the tests compare with)
 REUSE_FACTORISATION = True
-K_FLOOR = 1e-10  # k >= K_FLOOR U_b^2 and eps >= C_mu k_floor^(3/2) / D after every solve (PHYSICS.md 6.4)
+#: k >= K_FLOOR U_b^2 and eps >= C_mu k_floor^(3/2) / D after every solve
+#: (docs/physics.md, section 2)
+K_FLOOR = 1e-10
 
 
 def turbulence_floors(bulk_velocity, diameter):
@@ -396,7 +398,8 @@ class _StationSolver:
             G2 = (dux[0] ** 2 + dux[1] ** 2 + 2.0 * duz[0] ** 2 + 2.0 * duy[1] ** 2
                   + (duz[1] + duy[0]) ** 2 + 2.0 * dudx**2)
             Pk = mut * G2
-            # optional production limiter P_k <= c rho eps (PHYSICS.md §6.4), off by default:
+            # optional production limiter P_k <= c rho eps (docs/physics.md, section 2), off by
+            # default:
             # inactive in single-phase pipe flow (P_k/(rho eps) < 3), but under strong particle
             # sinks (C_eps3 > C_eps1 lengthens k/eps) it starves the turbulence and drives k to
             # zero where the particles gather.  Cells where it acts are counted.
@@ -447,9 +450,9 @@ class _StationSolver:
             be[wall] += big * ke.wall_epsilon(k_new[wall], yP)
             eps_new = self._factor["eps"](de, ePN, eNP).solve(be)
             self.check("epsilon", eps_new, positive=True)
-            # floors (PHYSICS.md 6.4) where strong particle sinks laminarise a pocket of the
-            # flow; k and eps are positive here already, the floors keep nu_t and k/eps finite.
-            # Counted per station (GasField.floored), never silent.
+            # floors (docs/physics.md, section 2) where strong particle sinks laminarise a pocket
+            # of the flow; k and eps are positive here already, the floors keep nu_t and k/eps
+            # finite.  Counted per station (GasField.floored), never silent.
             # Only with referenced (linear) sinks: a fixed sink the flow cannot sustain still
             # stops the solve (below, at the positivity check, or as a non-converged station).
             low_e = eps_new < self.eps_floor
@@ -546,8 +549,8 @@ class _StationSolver:
 def _pin_pressure_level(C, w):
     """C (CSR, canonical: duplicates summed, indices sorted) with 10³ × its largest diagonal
     magnitude added at (w, w): the continuity block with the pressure level pinned in cell w.
-    The same pattern and values as the former ``-(X).tolil()``, ``+=``, ``tocsr()`` (compared
-    on 300 coupled steps of scene h: equal to the bit), 25× faster."""
+    The same pattern and values as ``-(X).tolil()``, ``+=``, ``tocsr()`` (equal to the bit on
+    300 coupled steps of scene h), 25× faster."""
     C = C.tocsr(copy=True)
     C.sum_duplicates()
     C.sort_indices()
@@ -646,7 +649,7 @@ def solve(
     Raises :class:`SolverDivergence` on non-finite or non-positive k/epsilon, or when the
     periodic mode does not reach ``tol`` within ``max_iterations`` (message says so) unless
     ``require_convergence`` is False: then the field after ``max_iterations`` is returned with
-    ``converged = False`` (a coupling loop's inner iterations, PHYSICS.md §5.2 step 3).
+    ``converged = False`` (a coupling loop's inner iterations; docs/numerics.md, "Coupling loop").
     """
     t0 = time.perf_counter()
     if bulk_velocity <= 0:
@@ -834,10 +837,10 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
        divergence all of them in turn; after iterations that ran out, only those without
        momentum relaxation.  In the near-wall cells of a dense particle layer (scene h at
        4 eta0, final pass) k, eps and u_x can oscillate about the fixed point with a period of
-       ~12 iterations, decaying by only ~0.5 % per iteration; k-eps relaxation 0.5 damps it to
-       ~1.2 % per iteration, and the four stations of that pass that had stalled converged
-       (session-15 scratch runs on the stations' upstream states; momentum relaxation 0.7
-       slowed the decay instead, and 0.7 alone never converged).
+       ~12 iterations, decaying by only ~0.5 % per iteration; k-eps relaxation 0.5 damps it by
+       ~1.2 % per iteration, and the four stations of that pass that stall without it converge
+       with it (from the stations' upstream states; momentum relaxation 0.7 slows the decay
+       instead, and 0.7 alone does not converge; docs/history.md).
 
     An attempt that is still converging when its iterations run out (the largest change of the
     last quarter of them fell from the quarter before, or the last quarter's changes fall on a
@@ -847,7 +850,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
     state where its iterations ran out.  Where noisy particle sinks leave k at 1e-3 of its level
     in a few cells, k and eps there contract slowly but steadily (0.97-0.99 per iteration with
     tracer-like sinks at alpha = 0.3), and the coupled step, started again from the upstream
-    state, only repeated that contraction (tests/benchmarks/bench_rans_sinks.py).
+    state, only repeats that contraction (the sinks benchmark of docs/numerics.md, "Gas solver").
 
     The k-eps relaxation keeps the discrete fixed point; the coupled step and the momentum
     relaxation change the momentum-interpolation weights, so the cross flow of that station
@@ -915,12 +918,12 @@ def _still_converging(changes, chunk, tol, left):
        a band, keeps about the same maximum);
     2. they fall along a straight line in log(change) (coefficient of determination
        >= STEADY_R2, negative slope), and the slope of their later half reaches ``tol`` from
-       the last change in time.  This one catches a contraction that set in after a bump: in
-       scene g (4 eta0, two-way) the station at x = 0.825 m rose to a change of 0.16 at
-       iteration 142 of 200 and then contracted by 0.8-0.92 per iteration to 1.3e-5; the
-       first reading projected from the chunk's largest change (6.5e-2) and declined, though
-       ~30 more iterations would have done (results/HISTORY.md, session 17).  Scattered
-       changes have no such line (r2 ~ 0) and an oscillation about the fixed point neither.
+       the last change in time.  This one catches a contraction that sets in after a bump: in
+       scene g (4 eta0, two-way) the station at x = 0.825 m rises to a change of 0.16 at
+       iteration 142 of 200 and then contracts by 0.8-0.92 per iteration to 1.3e-5; the
+       first reading projects from the chunk's largest change (6.5e-2) and declines, though
+       ~30 more iterations suffice (docs/history.md).  Scattered changes have no such line
+       (r2 ~ 0) and an oscillation about the fixed point neither.
     """
     if len(changes) < 2 * chunk or left <= 0:
         return False
