@@ -19,7 +19,7 @@ def carman_kozeny(phi, d, kappa_max=np.inf):
     5.444...
     """
     phi = np.asarray(phi, dtype=float)
-    s = np.clip(1.0 - phi, 1e-300, None)
+    s = np.clip(1.0 - phi, 1e-6, None)  # φ = 1 would divide by zero; the cap applies long before
     return np.minimum(d * d * phi ** 3 / (180.0 * s * s), kappa_max)
 
 

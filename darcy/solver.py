@@ -11,7 +11,10 @@ Grid: the nx × ny × ny cells of :class:`TubeGrid`; cell volumes, x-face areas 
 are the parts inside the circular tube.  Face permeability: harmonic mean of the two cells.
 Face grain velocity: arithmetic mean.  Time: θ-scheme on the linear operator built from the
 φ and u handed in (θ = ½, Crank–Nicolson, by default; the diffusivity P0 κ/(ηφ) is ~10 m²/s in
-a slug, far beyond any explicit step), one sparse LU solve per step (scipy.sparse).  The paper
+a slug, far beyond any explicit step), one sparse LU solve per step (scipy.sparse).  Crank–
+Nicolson is not L-stable: for steps far above a cell's l²/D (≈ 5·10⁻⁹ s in an empty cell at the
+capped permeability) its stiff modes flip sign every step; θ = 1 (backward Euler) damps them
+and is what the coupled model uses by default (eulag.slug).  The paper
 integrates each dimension separately (ADI); a direct solve of the 600 unknowns of the 150 × 2 × 2
 grid is as cheap and has no splitting error.
 
@@ -23,8 +26,16 @@ Boundary conditions (``inlet``):
 - ``"source"``: the paper's form: the inlet face is closed and +S = P0 v_s A is added to the
   first layer of cells, −S to the last (SMH §2.1, "S ∝ v_g P0").
 Outlet x = L: P′ = 0 at the face.  Periodic tubes (``periodic=True``): P′ periodic plus a mean
-gradient G (an extra unknown, implicit) set by the constraint that the mean gas flux
-⟨q + φ u⟩ over the x-faces equals v_s; the pressure drop is −G L.
+gradient G, the quasi-steady series resistance of the slices,
+
+    G = −η ⟨(j − ū_i) / κ̄_i⟩_i,   j = v_s + ⟨(1 − φ̄_i) ū_i⟩_i,
+
+with κ̄_i the area-mean permeability of slice i (parallel paths), ū_i its solids-weighted grain
+velocity and j the mixture volume flux (uniform along a steady 1-D tube; its gas part averages
+to v_s); the pressure drop is −G L.  (Solving G as an extra implicit unknown with the
+constraint "mean gas flux over the x-faces = v_s" was tried: that differential-algebraic
+system has a growing mode — the constraint adds a positive rank-one term to the diffusion
+operator — so G is taken quasi-steady and explicit.)
 
 Mass balance: :meth:`DarcySolver.balance` returns the residual of the discrete gas volume
 balance of the last step (storage = boundary fluxes + the u terms), zero to round-off.
@@ -188,30 +199,28 @@ class DarcySolver:
         p_old = self.p.ravel()
         rhs = C * p_old - (1 - th) * (M @ p_old) + rhs_src
         if g.periodic:
-            # G column: cell a of an x-face gains T lx G, cell b loses it (face flux −κA/η (ΔP/lx + G))
+            # G: quasi-steady series resistance of the slices (see module docstring), explicit
             xa, xb, xT = fa[:nxf], fb[:nxf], T[:nxf]
+            A2 = g.area[None]
+            kbar = (kap * A2).sum(axis=(1, 2)) / g.cross_area          # parallel paths in a slice
+            sol_ = ((1.0 - phi) * A2).sum(axis=(1, 2)) / g.cross_area
+            ubar = (u[..., 0] * (1.0 - phi) * A2).sum(axis=(1, 2)) / np.maximum((1.0 - phi) * A2, 1e-300).sum(axis=(1, 2))
+            j = v_s + np.mean(sol_ * ubar)                                # mixture volume flux
+            G = -self.eta * np.mean((j - ubar) / kbar)
             gcol = np.zeros(n)
             np.add.at(gcol, xa, xT * g.lx)
             np.add.at(gcol, xb, -xT * g.lx)
-            # constraint: Σ T (P_b − P_a) + lx G Σ T = P0 (Σ A φ_f u_f − nx A v_s)
-            phif = 0.5 * (phi.ravel()[xa] + phi.ravel()[xb])
-            uxf = U[:nxf]
-            crow = np.zeros(n)
-            np.add.at(crow, xb, xT)
-            np.add.at(crow, xa, -xT)
-            c_rhs = self.p0 * (np.sum(phif * uxf) - g.nx * g.cross_area * v_s)
-            K = sp.bmat([[sp.diags(C) + th * M, sp.csr_matrix(-gcol[:, None])],
-                         [sp.csr_matrix(crow[None, :]), sp.csr_matrix([[g.lx * xT.sum()]])]], format="csc")
-            rhs_full = np.concatenate([rhs, [c_rhs]])
-            sol = spla.splu(K).solve(rhs_full)
-            p_new, G = sol[:n], sol[n]
+            rhs = rhs + gcol * G
+            rhs_src = rhs_src + gcol * G
+            K = (sp.diags(C) + th * M).tocsc()
+            p_new = spla.splu(K).solve(rhs)
         else:
             K = (sp.diags(C) + th * M).tocsc()
             p_new = spla.splu(K).solve(rhs)
             G = 0.0
         pm = th * p_new + (1 - th) * p_old
         self.last = dict(dt=dt, C=C, p_old=p_old, p_new=p_new, pm=pm, M=M, src=rhs_src, t_out=t_out,
-                         last=last, G=G, gcol=None if not g.periodic else gcol, kap=kap, v_s=v_s, phi=phi, u=u)
+                         last=last, G=G, kap=kap, v_s=v_s, phi=phi, u=u)
         self.p = p_new.reshape(g.shape)
         self.G = float(G)
         return self.p
@@ -226,8 +235,6 @@ class DarcySolver:
         outflow = 0.0
         if L["t_out"] is not None:
             outflow = np.sum(L["t_out"] * L["pm"][L["last"]]) / self.p0
-        if L["gcol"] is not None:
-            sources += np.sum(L["gcol"]) * L["G"] / self.p0  # zero: each face adds and removes
         resid = storage - (sources - outflow)
         return resid, dict(storage=storage, sources=sources, outflow=outflow)
 

@@ -92,8 +92,7 @@ def bin_grains(pos, status, lx, nx, periodic, length, bin_start, items):
             cursor[b[i]] += 1
 
 
-@njit(**PARALLEL_FLAGS)
-def grains_to_nodes(pos, vel, bin_start, items, lx, nx, ny, tube_r, periodic, length, sum_f, sum_fv):
+def _grains_to_nodes(pos, vel, bin_start, items, lx, nx, ny, tube_r, periodic, length, sum_f, sum_fv):
     """Σ_i F(x_i − x_j) and Σ_i v_i F at every node: a ``prange`` over axial node columns, each
     gathering from the grains of its neighbouring bins in sorted order (race-free, deterministic)."""
     lt = 2.0 * tube_r / ny
@@ -138,8 +137,7 @@ def grains_to_nodes(pos, vel, bin_start, items, lx, nx, ny, tube_r, periodic, le
                         sum_fv[i, b, c, 2] += w * vel[g, 2]
 
 
-@njit(**PARALLEL_FLAGS)
-def nodes_to_grains(pos, status, field, lx, nx, ny, tube_r, periodic, length, out):
+def _nodes_to_grains(pos, status, field, lx, nx, ny, tube_r, periodic, length, out):
     """Tent interpolation of a node field (nx, ny, ny, k) to the grains (eq. 9), normalised by Σ F."""
     lt = 2.0 * tube_r / ny
     ncomp = field.shape[3]
@@ -184,10 +182,18 @@ def nodes_to_grains(pos, status, field, lx, nx, ny, tube_r, periodic, length, ou
                 out[g, q] /= wsum
 
 
+# parallel (prange) and serial variants from one source (see dem.engine for the measured reason)
+grains_to_nodes = njit(**PARALLEL_FLAGS)(_grains_to_nodes)
+nodes_to_grains = njit(**PARALLEL_FLAGS)(_nodes_to_grains)
+grains_to_nodes_serial = njit(**JIT_FLAGS)(_grains_to_nodes)
+nodes_to_grains_serial = njit(**JIT_FLAGS)(_nodes_to_grains)
+
+
 class TentTransfer:
     """Tent transfer between the grains and an nx × ny × ny gas grid over a tube of length L."""
 
-    def __init__(self, nx, ny, length, tube_r, grain_r, periodic=False):
+    def __init__(self, nx, ny, length, tube_r, grain_r, periodic=False, parallel=False):
+        self.parallel = bool(parallel)
         self.nx, self.ny, self.length, self.tube_r = nx, ny, length, tube_r
         self.lx = length / nx
         self.periodic = bool(periodic)
@@ -201,7 +207,7 @@ class TentTransfer:
         """(φ [nx, ny, ny], u [nx, ny, ny, 3]) from the grains (FREE and FEED grains count)."""
         items = np.zeros(len(status), dtype=np.int64)
         bin_grains(pos, status, self.lx, self.nx, self.periodic, self.length, self.bin_start, items)
-        grains_to_nodes(pos, vel, self.bin_start, items, self.lx, self.nx, self.ny, self.tube_r, self.periodic,
+        (grains_to_nodes if self.parallel else grains_to_nodes_serial)(pos, vel, self.bin_start, items, self.lx, self.nx, self.ny, self.tube_r, self.periodic,
                         self.length, self.sum_f, self.sum_fv)
         phi = 1.0 - self.v_grain * self.sum_f / self.vol[None, :, :]
         u = np.zeros_like(self.sum_fv)
@@ -212,6 +218,6 @@ class TentTransfer:
     def to_grains(self, pos, status, field):
         """Node field (nx, ny, ny, k) → grain values (N, k)."""
         out = np.zeros((len(status), field.shape[3]))
-        nodes_to_grains(pos, status, np.ascontiguousarray(field), self.lx, self.nx, self.ny, self.tube_r,
+        (nodes_to_grains if self.parallel else nodes_to_grains_serial)(pos, status, np.ascontiguousarray(field), self.lx, self.nx, self.ny, self.tube_r,
                         self.periodic, self.length, out)
         return out
