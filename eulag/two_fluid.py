@@ -15,7 +15,8 @@ Case tables and keys (SI; the one exception is ``friction.internal_friction_angl
     [kinetic]    restitution
     [walls]      restitution, friction, tangential_restitution
     [drag]       mckeen_scale, blend_width
-    [numerics]   radial_cells, azimuthal_cells, first_cell_yplus, max_iterations, tolerance
+    [numerics]   radial_cells, azimuthal_cells, first_cell_yplus, max_iterations, tolerance,
+                 turbulence ("k-epsilon" | "mixing-length")
     [experiment] optional reference values (supplementary_gas, pressure_drop, inlet_alpha_s, ...)
 """
 
@@ -81,7 +82,8 @@ SCHEMA = {
     "numerics": {"radial_cells": (16, _num(2, 400, integer=True, lo_open=False)),
                  "azimuthal_cells": (32, _num(4, 800, integer=True, lo_open=False, even=True)),
                  "first_cell_yplus": (30.0, _num(0, 1000)), "max_iterations": (400, _num(0, 1e6, integer=True)),
-                 "tolerance": (1e-4, _num(0, 1))},
+                 "tolerance": (1e-4, _num(0, 1)),
+                 "turbulence": ("k-epsilon", _choice(("k-epsilon", "mixing-length")))},
 }
 _TOP = ("name", "description", "model")
 
@@ -153,7 +155,7 @@ def problem_from_case(case: dict):
                           params=params, mckeen_scale=c["drag"]["mckeen_scale"], drag_blend=c["drag"]["blend_width"],
                           radial_cells=n["radial_cells"], azimuthal_cells=n["azimuthal_cells"],
                           first_cell_yplus=float(n["first_cell_yplus"]), max_iterations=n["max_iterations"],
-                          tolerance=n["tolerance"])
+                          tolerance=n["tolerance"], turbulence=n["turbulence"])
 
 
 def _flat_attrs(c: dict) -> dict:
@@ -193,6 +195,7 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed):
         "frictional_viscosity": field(muf, "Pa s", "solids frictional viscosity mu_f (capped)"),
         "drag_coefficient": field(closures["beta"], "kg m-3 s-1", "gas-solid drag coefficient beta"),
         "gas_turbulent_viscosity": field(closures["nut"], "m2 s-1", "gas turbulent kinematic viscosity"),
+        "solids_pressure_kinetic": field(closures["pkin"], "Pa", "kinetic-collisional solids pressure (Lun)"),
         "pressure_gradient": xr.Variable(("x",), [st.G], {"units": "Pa m-1", "long_name": "section-mean -dp/dx"}),
         "pressure_drop": xr.Variable((), st.G * L, {"units": "Pa", "long_name": "-dp/dx times pipe.length"}),
         "capped_cells": xr.Variable((), np.int64(solver.capped), {"units": "1",
@@ -212,6 +215,9 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed):
         "z": xr.Variable(("r", "theta"), mesh.z, {"units": "m", "long_name": "horizontal coordinate"}),
         "cell_area": xr.Variable(("r", "theta"), mesh.cell_area, {"units": "m2", "long_name": "cell area"}),
     }
+    if st.k is not None:
+        data["gas_k"] = field(st.k, "m2 s-2", "gas turbulent kinetic energy")
+        data["gas_epsilon"] = field(st.eps, "m2 s-3", "gas turbulent dissipation rate")
     attrs = {"Conventions": CONVENTIONS, "title": f"two-fluid fully developed section: {c.get('name', '')}",
              "model": "two-fluid", "eulag_version": getattr(eulag, "__version__", "unknown"),
              "converged": "true" if converged else "false", "stop_reason": stop_reason,

@@ -21,11 +21,17 @@ Equations (Ding et al. 2024, Table 2 and eqs. 1–26, with ∂/∂x = 0 except t
   counter-flow), advanced in pseudo-time to ∇·F = 0 with p_s = p_f(α_s) + p_kin(α_s, Θ)
   implicit in α_s (Newton), the weight upwinded.
 
-Stated deviations from the paper (whose turbulence model is garbled in the extraction and
-which solved the 3-D unsteady problem): no secondary flow; the gas turbulent viscosity is
-Nikuradse's mixing length ν_t = ℓ² |∇u_g|; turbulent dispersion of the solids by the gas,
-D_t = ν_t/σ_α (σ_α = 1), is damped by (1 − min(α_s/α_min, 1))² so that inside the
-deposit friction, not turbulence, carries the solids; no solids turbulent viscosity.
+* gas turbulence (``turbulence = "k-epsilon"``, default): standard k-ε with eulag's constants and
+  log-law wall functions (:mod:`rans.kepsilon`), α_g-weighted, with the dispersed-phase sink
+  S_k = −2 α_s ρ_s k/(τ_F + τ_t) (τ_F = α_s ρ_s/β, τ_t = 1.5 C_μ k/ε) and C_ε3 (ε/k) S_k,
+  C_ε3 = 1.2; turbulent dispersion of the solids D_t = ν_t/σ_α, σ_α = 1.
+  ``turbulence = "mixing-length"``: Nikuradse's ℓ with ν_t = ℓ² |∇u_g|, the dispersion
+  damped by (1 − min(α_s/α_min, 1))² (no modulation otherwise).
+
+Stated deviations from the paper (whose realizable k-ε-k_p-ε_p model is garbled in the
+extraction, and which solved the 3-D unsteady problem): no secondary flow; the gas k-ε above
+in place of the realizable k-ε-k_p-ε_p (no solids turbulent viscosity); in-plane solids
+motion drag-limited (drift flux).
 
 A failing solve stops with :class:`SectionDivergence` naming the variable and the cell.
 """
@@ -39,6 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from rans import kepsilon as ke
 from rans.kepsilon import E_WALL, KAPPA
 from rans.mesh import PipeMesh
 from rans.operators import Section
@@ -80,6 +87,8 @@ class SectionProblem:
     alpha_steps: int = 3
     theta_floor: float = 1e-8
     relax_alpha: float = 0.5
+    turbulence: str = "k-epsilon"   # or "mixing-length"
+    c_eps3: float = 1.2
     relax_theta: float = 0.3
 
 
@@ -90,12 +99,15 @@ class SectionState:
     us: np.ndarray
     theta: np.ndarray
     G: float
+    k: np.ndarray | None = None
+    eps: np.ndarray | None = None
     dt: float = 1e-3
     iteration: int = 0
     history: list = field(default_factory=list)
 
     def as_arrays(self):
-        return dict(alpha=self.alpha, ug=self.ug, us=self.us, theta=self.theta, G=np.array(self.G),
+        extra = {} if self.k is None else dict(k=self.k, eps=self.eps)
+        return dict(alpha=self.alpha, ug=self.ug, us=self.us, theta=self.theta, G=np.array(self.G), **extra,
                     dt=np.array(self.dt), iteration=np.array(self.iteration),
                     history=np.array(self.history, dtype=float).reshape(-1, 4))
 
@@ -103,6 +115,7 @@ class SectionState:
     def from_arrays(cls, d):
         return cls(alpha=d["alpha"].copy(), ug=d["ug"].copy(), us=d["us"].copy(), theta=d["theta"].copy(),
                    G=float(d["G"]), dt=float(d["dt"]), iteration=int(d["iteration"]),
+                   k=d["k"].copy() if "k" in d else None, eps=d["eps"].copy() if "eps" in d else None,
                    history=[tuple(r) for r in np.asarray(d["history"])])
 
 
@@ -167,8 +180,13 @@ class _Solver:
         muf, ncap = cap_viscosity(muf, P.mu_f_max)
         mukc = gidaspow_viscosity(a, pb.rho_s, pb.d_s, st.theta, g0, P.e_ss)
         gug2 = self.grad_mag2(st.ug, 0.0)
-        nut = self.mix_len**2 * np.sqrt(gug2)
-        return dict(a=a, g0=g0, beta=beta, pf=pf, muf=muf, ncap=ncap, mukc=mukc, gus2=gus2, nut=nut, ss=ss)
+        if pb.turbulence == "k-epsilon":
+            nut = ke.C_MU * st.k**2 / st.eps
+        else:
+            nut = self.mix_len**2 * np.sqrt(gug2)
+        pkin = lun_solids_pressure(a, pb.rho_s, st.theta, g0, P.e_ss)
+        return dict(a=a, g0=g0, beta=beta, pf=pf, muf=muf, ncap=ncap, mukc=mukc, gus2=gus2, gug2=gug2, nut=nut,
+                    ss=ss, pkin=pkin)
 
     # ------------------------------------------------------------ axial momentum
     def momentum(self, st, c):
@@ -183,13 +201,17 @@ class _Solver:
         # gas wall function
         w = sec.wall
         yp = sec.wall_distance
-        up = np.maximum(np.abs(st.ug[w]), 1e-6)
-        nu = pb.mu_g / pb.rho_g
-        ut = np.sqrt(nu * up / yp)
-        for _ in range(30):
-            yplus = ut * yp / nu
-            ut = np.where(yplus > 11.2, KAPPA * up / np.log(E_WALL * np.maximum(yplus, 11.2)), np.sqrt(nu * up / yp))
-        hg = ag[w] * pb.rho_g * ut**2 / up
+        if pb.turbulence == "k-epsilon":
+            hg = ag[w] * ke.wall_shear_coefficient(st.k[w], yp, pb.rho_g, pb.mu_g)[0]
+        else:
+            up = np.maximum(np.abs(st.ug[w]), 1e-6)
+            nu = pb.mu_g / pb.rho_g
+            ut = np.sqrt(nu * up / yp)
+            for _ in range(30):
+                yplus = ut * yp / nu
+                ut = np.where(yplus > 11.2, KAPPA * up / np.log(E_WALL * np.maximum(yplus, 11.2)),
+                              np.sqrt(nu * up / yp))
+            hg = ag[w] * pb.rho_g * ut**2 / up
         # solids wall (eq. 24), linearised
         usw = st.us[w]
         tau = np.abs(schneiderbauer_wall_shear(np.where(usw == 0.0, 1e-6, usw), a[w], pb.rho_s, c["g0"][w],
@@ -210,6 +232,41 @@ class _Solver:
         self.tau_sw = tau
         self.hg, self.hs = hg, hs
         return u[:n], u[n:], G
+
+    # ------------------------------------------------------------ gas k-epsilon
+    def turbulence(self, st, c):
+        """Standard k-ε of the gas (Launder & Spalding 1974, rans.kepsilon constants and wall functions)
+        with the dispersed-phase modulation S_k = −2 α_s ρ_s k / (τ_F + τ_t), τ_F = α_s ρ_s/β,
+        τ_t = 1.5 C_μ k/ε, and C_ε3 (ε/k) S_k in the ε equation (no convection: fully developed)."""
+        pb, sec = self.pb, self.sec
+        A, a = self.A, c["a"]
+        ag = 1.0 - a
+        k, eps = st.k, st.eps
+        mut = pb.rho_g * ke.C_MU * k**2 / eps
+        w, yp = sec.wall, sec.wall_distance
+        prod = mut * c["gug2"]
+        tau_w = ke.wall_shear_coefficient(k[w], yp, pb.rho_g, pb.mu_g)[0] * np.abs(st.ug[w])
+        prod = prod.copy()
+        prod[w] = ke.wall_production(tau_w, k[w], yp)
+        tau_f = a * pb.rho_s / c["beta"]
+        tau_t = 1.5 * ke.C_MU * k / eps
+        sink_p = 2.0 * a * pb.rho_s / (tau_f + tau_t)           # S_k = −sink_p k
+        gk = ag * (pb.mu_g + mut / ke.SIGMA_K)
+        Lk = self.laplacian(_harmonic(gk[sec.P], gk[sec.N]))
+        dk = (ag * pb.rho_g * eps / k + sink_p) * A
+        k_new = spla.spsolve((Lk + sp.diags(dk)).tocsc(), ag * prod * A)
+        k_new = np.maximum(k_new, 1e-10)
+        ge = ag * (pb.mu_g + mut / ke.SIGMA_EPS)
+        Le = self.laplacian(_harmonic(ge[sec.P], ge[sec.N]))
+        de = (ke.C_EPS2 * ag * pb.rho_g * eps / k + pb.c_eps3 * sink_p) * A
+        rhs = ke.C_EPS1 * ag * eps / k * prod * A
+        # ε fixed in the wall cells (wall function): a dominant diagonal
+        big = 1e12 * (np.max(de) + np.max(np.abs(Le.diagonal())))
+        de = de.copy()
+        de[w] += big
+        rhs[w] = big * ke.wall_epsilon(k_new[w], yp)
+        e_new = np.maximum(spla.spsolve((Le + sp.diags(de)).tocsc(), rhs), 1e-10)
+        return k_new, e_new
 
     # ------------------------------------------------------------ granular temperature
     def granular_temperature(self, st, c):
@@ -254,7 +311,7 @@ class _Solver:
         beta_f = np.sqrt(c["beta"][sec.P] * c["beta"][sec.N])
         bhat = beta_f / a_f
         K = (1.0 - a_f) ** 2 / bhat
-        damp = (1.0 - np.minimum(st.alpha / P.alpha_min, 1.0)) ** 2
+        damp = (1.0 - np.minimum(st.alpha / P.alpha_min, 1.0)) ** 2 if pb.turbulence != "k-epsilon" else 1.0
         Dt = c["nut"] * damp / np.maximum(1.0 - st.alpha, 0.3)
         Dt_f = _harmonic(Dt[sec.P], Dt[sec.N])
         up = np.where(self.face_up_is_N, sec.N, sec.P)
@@ -307,12 +364,19 @@ class _Solver:
         pb = self.pb
         a0 = min(pb.m_s / (pb.rho_s * pb.u_g * self.Atot), 0.3)
         n = self.n
+        k0 = (0.05 * pb.u_g) ** 2
         return SectionState(alpha=np.full(n, a0), ug=np.full(n, pb.u_g / (1 - a0)), us=np.full(n, pb.u_g),
-                            theta=np.full(n, 1e-4), G=1000.0)
+                            theta=np.full(n, 1e-4), G=1000.0, k=np.full(n, k0),
+                            eps=np.full(n, ke.inlet_epsilon(k0, pb.diameter)))
 
     def run(self, st, callback=None):
+        """Outer iterations.  Where the change stalls (a limit cycle, e.g. wall cells at the onset of
+        friction, α_s ≈ α_min), the relaxation of α_s and Θ is halved (every 30 iterations without a
+        10 % improvement, down to 1/16 of the case's value); ``self.relaxation`` reports the last one."""
         pb = self.pb
         converged = False
+        self.relaxation = relax = 1.0
+        best, since = np.inf, 0
         while st.iteration < pb.max_iterations:
             st.iteration += 1
             c = self.closures(st)
@@ -323,10 +387,23 @@ class _Solver:
             st.ug, st.us = 0.7 * ug + 0.3 * st.ug, 0.7 * us + 0.3 * st.us
             dG = abs(G - st.G) / G
             st.G = 0.7 * G + 0.3 * st.G
+            dk = 0.0
+            if pb.turbulence == "k-epsilon":
+                if st.k is None:
+                    ini = self.initial_state()
+                    st.k, st.eps = ini.k, ini.eps
+                c = self.closures(st)
+                k, eps = self.turbulence(st, c)
+                self.check("gas_k", k, st.iteration, lo=0.0)
+                self.check("gas_epsilon", eps, st.iteration, lo=0.0)
+                dk = float(np.max(np.abs(k - st.k)) / np.max(k))
+                st.k = np.exp(0.7 * np.log(k) + 0.3 * np.log(st.k))
+                st.eps = np.exp(0.7 * np.log(eps) + 0.3 * np.log(st.eps))
             c = self.closures(st)
             th = self.granular_temperature(st, c)
             self.check("theta", th, st.iteration, lo=0.0)
-            st.theta = np.exp(pb.relax_theta * np.log(th) + (1.0 - pb.relax_theta) * np.log(np.maximum(st.theta, pb.theta_floor)))
+            rt = pb.relax_theta * relax
+            st.theta = np.exp(rt * np.log(th) + (1.0 - rt) * np.log(np.maximum(st.theta, pb.theta_floor)))
             c = self.closures(st)
             alpha = self.distribute(st, c, pb.alpha_steps)
             # solids mass flow -> inventory
@@ -339,15 +416,24 @@ class _Solver:
                 alpha = np.minimum(alpha, pb.params.alpha_max - 0.02)
             self.check("alpha_s", alpha, st.iteration, lo=0.0)
             da = float(np.max(np.abs(alpha - st.alpha)))
-            st.alpha = pb.relax_alpha * alpha + (1.0 - pb.relax_alpha) * st.alpha
-            res = max(du, dG, da, abs(ratio - 1.0))
+            ra = pb.relax_alpha * relax
+            st.alpha = ra * alpha + (1.0 - ra) * st.alpha
+            res = max(du, dG, da, dk, abs(ratio - 1.0))
             st.history.append((st.iteration, res, st.G, ms))
-            self.last = dict(du=du, dG=dG, da=da, dm=abs(ratio - 1.0))
+            self.last = dict(du=du, dG=dG, da=da, dk=dk, dm=abs(ratio - 1.0))
             if callback is not None:
                 callback(st)
             if res < pb.tolerance:
                 converged = True
                 break
+            if res < 0.9 * best:
+                best, since = res, 0
+            else:
+                since += 1
+                if since >= 30 and relax > 1.0 / 16.0:
+                    relax *= 0.5
+                    self.relaxation = relax
+                    best, since = res, 0
         c = self.closures(st)
         self.capped = c["ncap"]
         return st, converged, c
