@@ -156,29 +156,41 @@ def test_one_and_two_threads_bit_identical():
 
 @pytest.mark.slow
 def test_janssen_wall_stress_saturates_in_vertical_column():
-    """A column settled on a plate in a vertical tube (gravity along −x): the wall normal stress
-    σ_w(h) = (ρ_b g D/(4 μ_w)) (1 − exp(−4 μ_w K_J h/D)) of Janssen (1895) saturates with depth
-    h, while the hydrostatic value would grow linearly.  Compared: the mean wall stress of the
-    deepest third is below twice that of the middle third (linear growth would give ≈ 1.67×
-    the middle third... saturation gives ≈ 1), and the plate carries less than the weight."""
+    """A random column (porosity 0.57 relaxed packing, 8.6 cm) settled on a plate in a vertical
+    tube, gravity along −x.  Janssen (1895): the wall normal stress σ_w(h) =
+    (ρ_b g D/(4 μ_w)) (1 − exp(−h/λ)), λ = D/(4 μ_w K_J), saturates below a few λ (≈ 7 mm for
+    K_J ≈ 0.5, μ_w = 0.5), and the plate carries far less than the weight; hydrostatics would
+    give a wall stress growing linearly with depth h and the whole weight on the plate.
+    (The tangential force has no spring, so the column creeps slowly: the wall friction acts
+    at the creep speed, as in the paper's model.)"""
+    from dem.feed import relaxed_packing
+
     m = _model()
     dt = m.t_contact / STEPS_PER_CONTACT
-    length = 0.06
-    pos, _ = _random_column(1800, length, 4)
+    length = 0.084
+    n = int(round(0.43 * math.pi * RT**2 * length / m.volume))
+    pos = relaxed_packing(n, length, RT, D, RHO, K, seed=5)
+    pos[:, 0] += 0.5 * D  # whole column above the plate at x = 0 (the periodic seam opens slightly)
     g = Grains()
-    g.append(pos + np.array([1e-3, 0, 0]), np.zeros_like(pos), np.full(len(pos), FREE, dtype=np.int8),
-             np.arange(len(pos)))
+    g.append(pos, np.zeros_like(pos), np.full(n, FREE, dtype=np.int8), np.arange(n))
     grid = CellGrid(-0.001, length + 0.01, RT, D)
-    work, gas = {}, np.zeros((len(pos), 3))
-    dem_step(g, m, grid, gas, np.array([-9.81, 0, 0]), dt, 0.0, 0.0, work, nsteps=int(0.25 / dt))
-    x = g.pos[: g.n, 0]
-    top = x.max()
-    wall = work["wall_fn"][: g.n]
-    depth = top - x
-    thirds = np.array_split(np.argsort(depth), 3)
-    s = [wall[idx].sum() / (np.ptp(depth[idx]) + 1e-12) for idx in thirds]  # wall force per length
-    assert np.isfinite(s).all() and s[1] > 0
-    assert s[2] / s[1] < 1.35  # saturated (hydrostatic-like growth would be ≈ 1.67)
-    weight = g.n * m.mass * 9.81
-    plate = weight - wall.sum() * 0  # the plate force is weight minus wall friction
-    assert plate <= weight
+    work, gas = {}, np.zeros((n, 3))
+    dem_step(g, m, grid, gas, np.array([-9.81, 0, 0]), dt, 0.0, 0.0, work, nsteps=int(0.3 / dt))
+    x = g.pos[:n, 0]
+    wall = work["wall_fn"][:n]
+    weight = n * m.mass * 9.81
+    plate = np.sum(K * np.clip(m.radius - x, 0, None))  # static spring force on the plate
+    assert plate < 0.5 * weight
+    top = np.sort(x)[-20:].mean()
+    h = top - x  # depth below the free surface
+    edges = np.arange(0.0, h.max() - 0.01, 0.01)
+    per_length = np.array([wall[(h >= e) & (h < e + 0.01)].sum() / 0.01 for e in edges])
+    # saturation: the deepest three centimetres alike; the top centimetre below them
+    deep = per_length[-3:]
+    assert deep.std() / deep.mean() < 0.25
+    assert per_length[0] < 0.75 * deep.mean()
+    # In the saturated part the wall friction carries the weight per length; friction cannot
+    # exceed μ_w times the normal force (Coulomb), so the wall normal force per length is at
+    # least (weight per length)/μ_w (measured ≈ 1.9×: friction mobilised ≈ 0.26 at the creep speed)
+    w_per_length = weight / (top - x.min())
+    assert deep.mean() >= 0.95 * w_per_length / MU
