@@ -123,3 +123,25 @@ def test_resume_after_kill_is_bit_identical(tmp_path, monkeypatch):
         if name == "gas_solve_share":  # wall-clock
             continue
         assert np.array_equal(v.values, resumed[name].values, equal_nan=True), name
+
+
+def test_coupled_loop_one_and_two_threads_bit_identical(tmp_path):
+    """The prange kernels (numerics.parallel = true) on 1 and 2 threads and the serial kernels
+    give the same dataset bit for bit."""
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 numba threads")
+    out = []
+    for parallel, threads in ((False, 1), (True, 1), (True, 2)):
+        case = _short_periodic(end=0.01, ckpt=0.01)
+        case["numerics"]["parallel"] = parallel
+        numba.set_num_threads(threads)
+        try:
+            ds = slug.run_slug(case, tmp_path / f"t{parallel}{threads}.nc", progress=False)
+        finally:
+            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        out.append(ds)
+    for ds in out[1:]:
+        for name in ("porosity", "grain_velocity", "gas_pressure", "pressure_drop", "max_overlap_per_d"):
+            assert np.array_equal(out[0][name].values, ds[name].values), name
