@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["validate_slug_case", "run_slug", "DEFAULTS", "SLUG_POROSITY"]
+__all__ = ["validate_slug_case", "run_slug", "summarize", "DEFAULTS", "SLUG_POROSITY"]
 
 #: Slug criterion of the catalogue: slices (gas cells along x) with porosity below this.
 SLUG_POROSITY = 0.6
@@ -449,17 +449,21 @@ def _atomic_savez(path: Path, state: dict):
 
 
 def run_slug(case: dict, out, resume=False, progress=True):
-    """Run a "dem-darcy" case; write the transient dataset to ``out`` (NetCDF) and return it.
+    """Run a "dem-darcy" case; write the transient dataset to ``out`` (NetCDF; None: not written,
+    no checkpoints) and return it.  Attributes ``converged`` ("true" unless grains were lost)
+    and ``stop_reason`` give the run layer its verdict.
 
     ``<out>.checkpoint`` receives the state every ``numerics.checkpoint_interval_s``; with
     ``resume=True`` the run continues from it (bit-identical to an uninterrupted run), else an
     old checkpoint is removed.  The checkpoint is removed once the dataset is written.
     """
     c = validate_slug_case(case)
-    out = Path(out)
-    ckpt = out.with_name(out.name + ".checkpoint")
+    out = None if out is None else Path(out)
+    ckpt = None if out is None else out.with_name(out.name + ".checkpoint")
     sim = _Simulation(c)
-    if resume and ckpt.exists():
+    if ckpt is None:
+        pass
+    elif resume and ckpt.exists():
         with np.load(ckpt, allow_pickle=False) as z:
             sim.load({k: z[k] for k in z.files})
     elif ckpt.exists():
@@ -470,7 +474,7 @@ def run_slug(case: dict, out, resume=False, progress=True):
         sim.gas_step_advance()
         if sim.gas_step % sim.n_out == 0:
             sim.record()
-        if sim.gas_step % sim.n_ckpt == 0 and sim.gas_step < sim.n_gas_total:
+        if ckpt is not None and sim.gas_step % sim.n_ckpt == 0 and sim.gas_step < sim.n_gas_total:
             _atomic_savez(ckpt, sim.state())
         if progress and time.time() - last_report > 10:
             last_report = time.time()
@@ -480,6 +484,10 @@ def run_slug(case: dict, out, resume=False, progress=True):
                   f"wall {last_report - t_start:.0f} s", flush=True)
     ds = sim.dataset()
     ds.attrs["wall_time_s"] = time.time() - t_start
+    ds.attrs["converged"] = "true" if sim.lost == 0 else "false"
+    ds.attrs["stop_reason"] = "finished" if sim.lost == 0 else f"finished with {sim.lost} grains lost"
+    if out is None:
+        return ds
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp")
     ds.to_netcdf(tmp)
@@ -487,3 +495,43 @@ def run_slug(case: dict, out, resume=False, progress=True):
     if ckpt.exists():
         ckpt.unlink()
     return ds
+
+
+def summarize(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100):
+    """Numbers to compare with SMH from a slug dataset (a dict of floats).
+
+    Over records with time ≥ t_min: mean pressure drop [Pa] and per length [Pa/m], mean grains
+    in the tube; over slugs of at least ``min_grains`` grains whose centre lies in
+    ``x_window`` [m]: mean minimum porosity, length [m], grain count, and the slug velocity
+    [m/s] from the catalogue — each such slug linked to the slug of the next record whose centre
+    lies 0–5 cm ahead (the nearest), velocity = Δx/Δt, median over the links.
+    """
+    t = ds["time"].values
+    sel = t >= t_min
+    L = json.loads(ds.attrs["case"])["tube"]["length_m"]
+    out = {"t_from_s": float(t_min), "t_to_s": float(t[-1]) if len(t) else float("nan"),
+           "pressure_drop_Pa": float(ds["pressure_drop"].values[sel].mean()),
+           "grains_in_tube": float(ds["grains_in_tube"].values[sel].mean())}
+    out["pressure_drop_per_length_Pa_m"] = out["pressure_drop_Pa"] / L
+    st, sx = ds["slug_time"].values, ds["slug_position"].values
+    sg = ds["slug_grains"].values
+    big = (st >= t_min) & (sg >= min_grains)
+    win = big & (sx >= x_window[0]) & (sx <= x_window[1])
+    out["slug_records"] = int(win.sum())
+    if win.any():
+        out["slug_min_porosity"] = float(ds["slug_min_porosity"].values[win].mean())
+        out["slug_length_m"] = float(ds["slug_length"].values[win].mean())
+        out["slug_grains"] = float(sg[win].mean())
+        out["slug_max_grain_velocity_m_s"] = float(ds["slug_max_velocity"].values[win].mean())
+    times = np.unique(st[big])
+    dt_rec = float(np.median(np.diff(times))) if len(times) > 1 else float("nan")
+    v = []
+    for i in np.flatnonzero(win):
+        nxt = big & np.isclose(st, st[i] + dt_rec)
+        dx = sx[nxt] - sx[i]
+        dx = dx[(dx >= 0) & (dx <= 0.05)]
+        if len(dx):
+            v.append(dx.min() / dt_rec)
+    out["slug_velocity_m_s"] = float(np.median(v)) if v else float("nan")
+    out["slug_velocity_links"] = len(v)
+    return out
