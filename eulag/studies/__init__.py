@@ -57,6 +57,7 @@ import sys
 import time
 from typing import Callable
 
+from .ablation import ablation_cases, study_scenes_ablation
 from .error_runtime import Setting, error_runtime_plan, study_error_runtime
 from .profiles import diameter_profile, pareto_front, profile_deviation, provenance, read_measurements
 from .report import Column, machine_info, markdown_table, table_frame, write_csv, write_report
@@ -78,9 +79,9 @@ __all__ = ["add_arguments", "STUDIES", "BASE_CASE", "QUICK_NUMERICS", "STABILITY
            "markdown_table", "write_csv", "write_report", "diameter_profile", "profile_deviation",
            "pareto_front", "provenance", "read_measurements", "Setting", "error_runtime_plan",
            "scene_cases", "stability_cases", "tsuji_morikawa_cases", "study_error_runtime", "study_scenes",
-           "study_stability", "study_tsuji_morikawa"]
+           "study_stability", "study_tsuji_morikawa", "ablation_cases", "study_scenes_ablation"]
 
-STUDIES = ("tsuji-morikawa", "scenes", "error-runtime", "stability")
+STUDIES = ("tsuji-morikawa", "scenes", "scenes-ablation", "error-runtime", "stability")
 
 
 def add_arguments(parser) -> None:
@@ -96,6 +97,14 @@ def add_arguments(parser) -> None:
     p = sub.add_parser("scenes", help="the secondary-flow scene matrix a-h (cases/scenes/)")
     _common(p, "scenes", only="comma-separated scenes to run, e.g. a,c (default: all)")
     p.set_defaults(func=_entry(study_scenes))
+
+    p = sub.add_parser("scenes-ablation", help="each departure from the reference paper's model switched "
+                                               "alone, on proxies of scenes b, d, e, g, h")
+    _common(p, "scenes-ablation", only="comma-separated scenes, e.g. b,d (default: b,d,e,g,h)")
+    p.add_argument("--variants", metavar="LIST",
+                   help="comma-separated variants (default: all; eulag study scenes-ablation --help lists "
+                        "them in the output table)")
+    p.set_defaults(func=_entry(study_scenes_ablation))
 
     p = sub.add_parser("error-runtime", help="error of the section profiles against wall time "
                                              "(grids, parcels, step factor, step rule)")

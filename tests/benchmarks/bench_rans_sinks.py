@@ -27,13 +27,12 @@ import time
 
 import numpy as np
 
-from particles.kernel import C_T  # T_L = C_T (2/3) k/eps (Sommerfeld 2001; PHYSICS.md §2.1, §12)
-from particles.tracking import C_EPS3  # S_eps = C_eps3 (eps/k) S_k (seed; PHYSICS.md §5.1, §12)
-
-from . import PipeMesh, solve
-from . import kepsilon as ke
-from . import operators, solver
-from .solver import GasProperties, Sources
+from particles.kernel import C_T  # T_L = C_T (2/3) k/eps (Sommerfeld 2001)
+from particles.tracking import C_EPS3  # S_eps = C_eps3 (eps/k) S_k (the reference paper)
+from rans import PipeMesh, solve
+from rans import kepsilon as ke
+from rans import operators, solver
+from rans.solver import GasProperties, Sources
 
 
 class _Counted:
