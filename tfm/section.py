@@ -370,13 +370,15 @@ class _Solver:
                             eps=np.full(n, ke.inlet_epsilon(k0, pb.diameter)))
 
     def run(self, st, callback=None):
-        """Outer iterations.  Where the change stalls (a limit cycle, e.g. wall cells at the onset of
-        friction, α_s ≈ α_min), the relaxation of α_s and Θ is halved (every 30 iterations without a
-        10 % improvement, down to 1/16 of the case's value); ``self.relaxation`` reports the last one."""
+        """Outer iterations.  Where the change stalls in a limit cycle (successive α_s updates point in
+        opposite directions, e.g. wall cells at the onset of friction, α_s ≈ α_min), the relaxation of
+        α_s and Θ is halved (after 30 iterations without a 10 % improvement of which most oscillated,
+        down to 1/16 of the case's value); ``self.relaxation`` reports the last one."""
         pb = self.pb
         converged = False
         self.relaxation = relax = 1.0
-        best, since = np.inf, 0
+        best, since, flips = np.inf, 0, 0
+        prev_step = None
         while st.iteration < pb.max_iterations:
             st.iteration += 1
             c = self.closures(st)
@@ -417,6 +419,11 @@ class _Solver:
             self.check("alpha_s", alpha, st.iteration, lo=0.0)
             da = float(np.max(np.abs(alpha - st.alpha)))
             ra = pb.relax_alpha * relax
+            step = alpha - st.alpha
+            if prev_step is not None:
+                nrm = np.linalg.norm(step) * np.linalg.norm(prev_step)
+                flips += int(nrm > 0 and float(step @ prev_step) < 0.0)
+            prev_step = step
             st.alpha = ra * alpha + (1.0 - ra) * st.alpha
             res = max(du, dG, da, dk, abs(ratio - 1.0))
             st.history.append((st.iteration, res, st.G, ms))
@@ -427,13 +434,14 @@ class _Solver:
                 converged = True
                 break
             if res < 0.9 * best:
-                best, since = res, 0
+                best, since, flips = res, 0, 0
             else:
                 since += 1
-                if since >= 30 and relax > 1.0 / 16.0:
-                    relax *= 0.5
-                    self.relaxation = relax
-                    best, since = res, 0
+                if since >= 30:
+                    if flips > 15 and relax > 1.0 / 16.0:
+                        relax *= 0.5
+                        self.relaxation = relax
+                    best, since, flips = res, 0, 0
         c = self.closures(st)
         self.capped = c["ncap"]
         return st, converged, c
