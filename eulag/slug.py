@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["validate_slug_case", "run_slug", "summarize", "DEFAULTS", "SLUG_POROSITY"]
+__all__ = ["validate_slug_case", "run_slug", "summarize", "dataset_from_checkpoint", "DEFAULTS", "SLUG_POROSITY"]
 
 #: Slug criterion of the catalogue: slices (gas cells along x) with porosity below this.
 SLUG_POROSITY = 0.6
@@ -345,7 +345,10 @@ class _Simulation:
                     x0, length = cells[0] * lx, (j - i + 1) * lx
                     rel = (xs - x0) % self.L if self.periodic else xs - x0
                     cnt = int(((rel >= 0) & (rel < length)).sum())
-                    centre = (x0 + 0.5 * length) % self.L if self.periodic else x0 + 0.5 * length
+                    wgt = 1.0 - phi1[cells]  # solids-weighted centroid: sub-cell position
+                    centre = x0 + (np.sum(wgt * (np.arange(len(cells)) + 0.5)) / np.sum(wgt)) * lx
+                    if self.periodic:
+                        centre %= self.L
                     self.slugs.append((t, centre, float(phi1[cells].min()), float(ux1[cells].max()), length, cnt))
                     i = j + 1
                 else:
@@ -411,7 +414,7 @@ class _Simulation:
                                          "largest grain overlap over the last interval / grain diameter"),
                 "gas_solve_share": var(("time",), r["gas_share"], "1", "share of wall time in the gas solve (so far)"),
                 "slug_time": var(("slug",), sl[:, 0], "s", "time of the slug record"),
-                "slug_position": var(("slug",), sl[:, 1], "m", "slug centre"),
+                "slug_position": var(("slug",), sl[:, 1], "m", "slug centre (solids-weighted centroid of its slices)"),
                 "slug_min_porosity": var(("slug",), sl[:, 2], "1", "minimum slice porosity in the slug"),
                 "slug_max_velocity": var(("slug",), sl[:, 3], "m s-1", "maximum slice grain velocity in the slug"),
                 "slug_length": var(("slug",), sl[:, 4], "m", f"length of the run of slices with porosity < {SLUG_POROSITY}"),
@@ -497,18 +500,20 @@ def run_slug(case: dict, out, resume=False, progress=True):
     return ds
 
 
-def summarize(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100):
+def summarize(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, link_records=5):
     """Numbers to compare with SMH from a slug dataset (a dict of floats).
 
     Over records with time ≥ t_min: mean pressure drop [Pa] and per length [Pa/m], mean grains
     in the tube; over slugs of at least ``min_grains`` grains whose centre lies in
     ``x_window`` [m]: mean minimum porosity, length [m], grain count, and the slug velocity
-    [m/s] from the catalogue — each such slug linked to the slug of the next record whose centre
-    lies 0–5 cm ahead (the nearest), velocity = Δx/Δt, median over the links.
+    [m/s] from the catalogue — each such slug linked to the nearest slug ``link_records``
+    records later whose centre lies 0–10 cm ahead (periodic tubes: modulo the length),
+    velocity = Δx/Δt, median over the links.
     """
     t = ds["time"].values
     sel = t >= t_min
-    L = json.loads(ds.attrs["case"])["tube"]["length_m"]
+    c = json.loads(ds.attrs["case"])
+    L, periodic = c["tube"]["length_m"], c["tube"]["periodic"]
     out = {"t_from_s": float(t_min), "t_to_s": float(t[-1]) if len(t) else float("nan"),
            "pressure_drop_Pa": float(ds["pressure_drop"].values[sel].mean()),
            "grains_in_tube": float(ds["grains_in_tube"].values[sel].mean())}
@@ -523,15 +528,28 @@ def summarize(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100):
         out["slug_length_m"] = float(ds["slug_length"].values[win].mean())
         out["slug_grains"] = float(sg[win].mean())
         out["slug_max_grain_velocity_m_s"] = float(ds["slug_max_velocity"].values[win].mean())
-    times = np.unique(st[big])
-    dt_rec = float(np.median(np.diff(times))) if len(times) > 1 else float("nan")
+    dt_rec = float(np.median(np.diff(t))) if len(t) > 1 else float("nan")
+    span = link_records * dt_rec
     v = []
     for i in np.flatnonzero(win):
-        nxt = big & np.isclose(st, st[i] + dt_rec)
+        nxt = big & np.isclose(st, st[i] + span, atol=0.25 * dt_rec)
         dx = sx[nxt] - sx[i]
-        dx = dx[(dx >= 0) & (dx <= 0.05)]
+        if periodic:
+            dx %= L
+        dx = dx[(dx >= 0) & (dx <= 0.1)]
         if len(dx):
-            v.append(dx.min() / dt_rec)
+            v.append(dx.min() / span)
     out["slug_velocity_m_s"] = float(np.median(v)) if v else float("nan")
     out["slug_velocity_links"] = len(v)
     return out
+
+
+def dataset_from_checkpoint(case: dict, checkpoint):
+    """The dataset of a run so far, from its checkpoint (``<out>.checkpoint``): a look at a
+    running or interrupted run without disturbing it."""
+    sim = _Simulation(validate_slug_case(case))
+    with np.load(Path(checkpoint), allow_pickle=False) as z:
+        sim.load({k: z[k] for k in z.files})
+    ds = sim.dataset()
+    ds.attrs["partial"] = f"from checkpoint at t = {sim.gas_step * sim.gas_dt:.4g} s"
+    return ds
