@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["validate_slug_case", "run_slug", "summarize", "dataset_from_checkpoint", "DEFAULTS", "SLUG_POROSITY"]
+__all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "dataset_from_checkpoint", "DEFAULTS", "SLUG_POROSITY"]
 
 #: Slug criterion of the catalogue: slices (gas cells along x) with porosity below this.
 SLUG_POROSITY = 0.6
@@ -542,6 +542,48 @@ def summarize(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, link_records=
     out["slug_velocity_m_s"] = float(np.median(v)) if v else float("nan")
     out["slug_velocity_links"] = len(v)
     return out
+
+
+def slug_profiles(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, dx_max_d=40.0):
+    """Averaged slug profiles against Δx/d, the distance from the slug centre in grain diameters
+    (SMH Figs. 12–14; Δx > 0 ahead of the slug): porosity, grain velocity and the gas pressure
+    gradient −∂P′/∂x (the drag per unit volume on the packing), from the porosity, grain
+    velocity and gas pressure fields of the records, shifted to each catalogued slug's centre
+    (slugs of ≥ ``min_grains`` grains centred in ``x_window`` [m], time ≥ t_min) by linear
+    interpolation and averaged.  Returns an xarray.Dataset on ``dx_over_d``.
+    """
+    import xarray as xr
+
+    c = json.loads(ds.attrs["case"])
+    d, L, periodic = c["grains"]["diameter_m"], c["tube"]["length_m"], c["tube"]["periodic"]
+    x = ds["x"].values
+    t = ds["time"].values
+    q = np.linspace(-dx_max_d, dx_max_d, int(2 * dx_max_d) + 1)
+    st, sx, sg = ds["slug_time"].values, ds["slug_position"].values, ds["slug_grains"].values
+    pick = (st >= t_min) & (sg >= min_grains) & (sx >= x_window[0]) & (sx <= x_window[1])
+    phi, ux, p = ds["porosity"].values, ds["grain_velocity"].values, ds["gas_pressure"].values
+    dpdx = -np.gradient(p, x, axis=1)
+    acc = {k: np.zeros_like(q) for k in ("porosity", "grain_velocity", "drag")}
+    cnt = np.zeros_like(q)
+    for i in np.flatnonzero(pick):
+        k = int(np.argmin(np.abs(t - st[i])))
+        xs = sx[i] + q * d
+        if periodic:
+            xs = xs % L
+            ok = np.ones_like(q, bool)
+        else:
+            ok = (xs >= x[0]) & (xs <= x[-1])
+        for name, f in (("porosity", phi[k]), ("grain_velocity", ux[k]), ("drag", dpdx[k])):
+            acc[name][ok] += np.interp(xs[ok], x, f)
+        cnt[ok] += 1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = {k: v / cnt for k, v in acc.items()}
+    return xr.Dataset(
+        {"porosity": ("dx_over_d", mean["porosity"], dict(units="1", long_name="mean porosity")),
+         "grain_velocity": ("dx_over_d", mean["grain_velocity"], dict(units="m s-1", long_name="mean axial grain velocity")),
+         "drag": ("dx_over_d", mean["drag"], dict(units="Pa m-1", long_name="-dP/dx, gas force per unit volume")),
+         "samples": ("dx_over_d", cnt, dict(units="1", long_name="slug records averaged"))},
+        coords={"dx_over_d": ("dx_over_d", q, dict(units="1", long_name="distance from the slug centre / d"))})
 
 
 def dataset_from_checkpoint(case: dict, checkpoint):
