@@ -235,8 +235,10 @@ def _checkpoint_path(out: Path) -> Path:
 def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: bool = False):
     """Run a two-fluid case; return its xarray.Dataset (written to ``out`` when given).
 
-    resume : continue from ``out``'s checkpoint (``<out>.checkpoint.npz``); an ``out`` that
-    already holds this finished case is returned without recomputing.
+    resume : continue from ``out``'s checkpoint (``<out>.checkpoint.npz``, written every 25
+    iterations and at an unconverged end) when it belongs to the same case (all keys but
+    ``numerics.max_iterations`` and ``[experiment]``); an ``out`` that already holds this finished
+    case is returned without recomputing.
     """
     import xarray as xr
 
@@ -245,7 +247,9 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
 
     validate_two_fluid_case(case)
     c = resolved_case(case)
-    key = json.dumps(c, sort_keys=True, default=str)
+    # "the same case" for resume: everything but the iteration budget and the reference data
+    same = {k: (dict(v, max_iterations=None) if k == "numerics" else v) for k, v in c.items() if k != "experiment"}
+    key = json.dumps(same, sort_keys=True, default=str)
     out = Path(out) if out is not None else None
     if resume and out is not None and out.is_file():
         with xr.open_dataset(out) as old:

@@ -140,3 +140,20 @@ def test_pressure_drop_grid_convergence_is_monotone(model):
     dp = [float(_solve(small_case(model=model, nr=nr, nt=nt))[1].G) * 2.4 for nr, nt in ((16, 32), (24, 48), (32, 64))]
     assert dp[0] < dp[1] < dp[2]
     assert dp[2] - dp[1] < dp[1] - dp[0]
+
+
+def test_unconverged_run_leaves_a_checkpoint_and_resume_continues_it(tmp_path):
+    case = small_case(nr=6, nt=12)
+    case["numerics"]["max_iterations"] = 20
+    out = tmp_path / "tf.nc"
+    ds = run_two_fluid(case, out)
+    assert ds.attrs["converged"] == "false" and "numerics.tolerance" in ds.attrs["stop_reason"]
+    ck = out.with_name(out.name + ".checkpoint.npz")
+    assert ck.is_file()
+    case["numerics"]["max_iterations"] = 400
+    done = run_two_fluid(case, out, resume=True)
+    assert done.attrs["converged"] == "true"
+    assert int(done.iteration[0]) == 1 and done.sizes["iteration"] == done.attrs["iterations"] > 20
+    assert not ck.exists()
+    fresh = run_two_fluid(case, None)
+    assert float(done.pressure_drop) == pytest.approx(float(fresh.pressure_drop), rel=2e-3)

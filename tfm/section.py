@@ -38,7 +38,6 @@ A failing solve stops with :class:`SectionDivergence` naming the variable and th
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -297,8 +296,16 @@ class _Solver:
         pb, P = self.pb, self.pb.params
         x = np.clip(a, 0.0, None)
         pf, _ = frictional_stress(pb.friction, x, c["ss"], theta, 0.0, pb.d_s, P)
-        g0 = savage_radial_distribution(np.minimum(x, P.alpha_max - 1e-4), P.alpha_max)
-        return pf + lun_solids_pressure(x, pb.rho_s, theta, g0, P.e_ss)
+        # kinetic-collisional part continued along its tangent above α_max − δ (as p_f): finite at packing
+        a_lin = P.alpha_max - max(P.linearise_delta, 1e-4)
+        xe = np.minimum(x, a_lin)
+
+        def pk(z):
+            return lun_solids_pressure(z, pb.rho_s, theta, savage_radial_distribution(z, P.alpha_max), P.e_ss)
+
+        h = 1e-6
+        slope = (pk(np.full_like(x, a_lin)) - pk(np.full_like(x, a_lin - h))) / h
+        return pf + pk(xe) + np.where(x > a_lin, slope * (x - a_lin), 0.0)
 
     def distribute(self, st, c, steps):
         with np.errstate(all="ignore"):
