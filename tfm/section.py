@@ -140,7 +140,6 @@ class _Solver:
         self.capped = 0
         # constant structural pieces
         self.cf = sec.S / sec.delta
-        f = np.arange(sec.nf)
         self.face_up_is_N = sec.ny > 0.0   # weight flux comes from the upper cell
 
     # ------------------------------------------------------------ helpers
@@ -420,6 +419,8 @@ class _Solver:
             ratio = pb.m_s / max(ms, 1e-12)
             fac = ratio ** 0.5
             alpha = alpha * fac
+            # the inventory update never packs a cell beyond α_max − 0.02 (without friction, "none",
+            # the deposit reaches that bound and the solids flow stays short of M_s: reported unconverged)
             over = alpha > pb.params.alpha_max - 0.02
             if np.any(over):
                 alpha = np.minimum(alpha, pb.params.alpha_max - 0.02)
