@@ -145,3 +145,28 @@ def test_coupled_loop_one_and_two_threads_bit_identical(tmp_path):
     for ds in out[1:]:
         for name in ("porosity", "grain_velocity", "gas_pressure", "pressure_drop", "max_overlap_per_d"):
             assert np.array_equal(out[0][name].values, ds[name].values), name
+
+
+def test_summarize_recovers_the_speed_of_a_synthetic_slug():
+    """A catalogue of one slug moving at 0.3 m/s in a periodic 7 cm tube (wrapping round)."""
+    import json
+
+    import xarray as xr
+
+    t = np.arange(1, 101) * 0.01
+    xpos = (0.01 + 0.3 * t) % 0.07
+    case = slug.validate_slug_case(_case("periodic_slug"))
+    x = (np.arange(20) + 0.5) * 0.0035
+    ds = xr.Dataset(
+        {"pressure_drop": ("time", np.full(100, 50.0)), "grains_in_tube": ("time", np.full(100, 644)),
+         "slug_time": ("slug", t), "slug_position": ("slug", xpos), "slug_grains": ("slug", np.full(100, 400)),
+         "slug_min_porosity": ("slug", np.full(100, 0.5)), "slug_length": ("slug", np.full(100, 0.03)),
+         "slug_max_velocity": ("slug", np.full(100, 0.2)),
+         "porosity": (("time", "x"), np.ones((100, 20))), "grain_velocity": (("time", "x"), np.zeros((100, 20))),
+         "gas_pressure": (("time", "x"), np.zeros((100, 20)))},
+        coords={"time": t, "x": x}, attrs={"case": json.dumps(case)})
+    s = slug.summarize(ds, x_window=(0.0, 0.07))
+    assert s["slug_velocity_m_s"] == pytest.approx(0.3, rel=1e-9)
+    assert s["pressure_drop_per_length_Pa_m"] == pytest.approx(50.0 / 0.07)
+    prof = slug.slug_profiles(ds, x_window=(0.0, 0.07))
+    assert np.allclose(prof.porosity, 1.0) and prof.samples.min() == 100
