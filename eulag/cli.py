@@ -546,6 +546,8 @@ def main(argv: list[str] | None = None) -> int:
         return exc.status
     except SystemExit as exc:  # --help, --version
         return exc.code if isinstance(exc.code, int) else EXIT_OK
+    except BrokenPipeError:  # the reader of stdout went away (e.g. `eulag study --help | head`)
+        return EXIT_OK
     except KeyboardInterrupt:
         print("eulag: error: interrupted; no output written", file=sys.stderr)
         return 130
