@@ -215,6 +215,12 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed):
         "z": xr.Variable(("r", "theta"), mesh.z, {"units": "m", "long_name": "horizontal coordinate"}),
         "cell_area": xr.Variable(("r", "theta"), mesh.cell_area, {"units": "m2", "long_name": "cell area"}),
     }
+    dp_meas = c.get("experiment", {}).get("pressure_drop")
+    if isinstance(dp_meas, (int, float)) and dp_meas > 0:
+        data["pressure_drop_measured"] = xr.Variable((), float(dp_meas), {
+            "units": "Pa", "long_name": "measured pressure drop over the pipe (experiment.pressure_drop)"})
+        data["pressure_drop_relative_error"] = xr.Variable((), st.G * L / dp_meas - 1.0, {
+            "units": "1", "long_name": "(computed - measured) / measured pressure drop"})
     if st.k is not None:
         data["gas_k"] = field(st.k, "m2 s-2", "gas turbulent kinetic energy")
         data["gas_epsilon"] = field(st.eps, "m2 s-3", "gas turbulent dissipation rate")
