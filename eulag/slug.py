@@ -207,7 +207,8 @@ class _Simulation:
         self.lost_reasons = {"behind_feed": 0, "outside_wall": 0, "not_finite": 0}
         self.max_overlap = 0.0
         self.phi_clipped = 0
-        self.rec = {k: [] for k in ("time", "phi", "ux", "p", "dp", "n_tube", "outflow", "overlap", "gas_share")}
+        self.rec = {k: [] for k in ("time", "phi", "ux", "p", "dp", "n_tube", "outflow", "overlap", "gas_share",
+                                    "wall_stress", "temperature", "contact")}
         self.slugs = []
         self.t_gas = 0.0
         self.t_total = 0.0
@@ -325,6 +326,19 @@ class _Simulation:
         r["overlap"].append(self.max_overlap / self.d)
         r["gas_share"].append(self.t_gas / max(self.t_total, 1e-300))
         self.max_overlap = 0.0
+        # per-slice grain statistics: wall normal stress, granular temperature, contact force
+        nxg = grid.nx
+        k = np.clip((x[in_tube] / grid.lx).astype(np.int64), 0, nxg - 1)
+        cnt = np.bincount(k, minlength=nxg).astype(float)
+        fw = self.work["wall_fn"][:n][in_tube] if "wall_fn" in self.work else np.zeros(len(k))
+        r["wall_stress"].append(np.bincount(k, weights=fw, minlength=nxg) / (math.pi * self.Dt * grid.lx))
+        v = g.vel[:n][in_tube]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean_v = np.stack([np.bincount(k, weights=v[:, q], minlength=nxg) for q in range(3)], axis=1) / cnt[:, None]
+            dv = v - mean_v[k]
+            r["temperature"].append(np.bincount(k, weights=(dv * dv).sum(axis=1) / 3.0, minlength=nxg) / cnt)
+            fc = np.linalg.norm(g.force[:n][in_tube], axis=1)
+            r["contact"].append(np.bincount(k, weights=fc, minlength=nxg) / cnt)
         # slug catalogue: runs of slices with φ < SLUG_POROSITY
         lx = grid.lx
         s = phi1 < SLUG_POROSITY
@@ -382,7 +396,11 @@ class _Simulation:
         self.lost, self.max_overlap, self.phi_clipped = scal["lost"], scal["max_overlap"], scal["phi_clipped"]
         self.feed.next_block = scal["next_block"]
         self.lost_reasons = scal["lost_reasons"]
+        n_rec = len(st["rec_time"])
         for k in self.rec:
+            if "rec_" + k not in st:  # a checkpoint written before this record existed
+                self.rec[k] = [np.full(self.grid.nx, np.nan) for _ in range(n_rec)]
+                continue
             a = st["rec_" + k]
             self.rec[k] = [row for row in a] if a.ndim > 1 else a.tolist()
         self.slugs = [tuple(r) for r in st["slugs"]]
@@ -406,6 +424,12 @@ class _Simulation:
                 "grain_velocity": var(("time", "x"), r["ux"], "m s-1",
                                       "axial grain velocity, solids-weighted cross-section mean"),
                 "gas_pressure": var(("time", "x"), r["p"], "Pa", "gas pressure relative to P0, cross-section mean"),
+                "wall_normal_stress": var(("time", "x"), r["wall_stress"], "Pa",
+                                          "grain normal force on the tube wall per wall area, per slice (last DEM step)"),
+                "granular_temperature": var(("time", "x"), r["temperature"], "m2 s-2",
+                                            "granular temperature <|v - mean v|^2>/3 of the grains of a slice"),
+                "contact_force": var(("time", "x"), r["contact"], "N",
+                                     "mean magnitude of the contact force (grains and wall) per grain of a slice"),
                 "pressure_drop": var(("time",), r["dp"], "Pa", "gas pressure at the inlet minus outlet"),
                 "grains_in_tube": var(("time",), r["n_tube"], "1", "free grains with 0 <= x < L"),
                 "outflow_count": var(("time",), r["outflow"], "1", "grains left through the outlet since t = 0"),
@@ -546,9 +570,10 @@ def summarize(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, link_records=
 
 def slug_profiles(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, dx_max_d=40.0):
     """Averaged slug profiles against Δx/d, the distance from the slug centre in grain diameters
-    (SMH Figs. 12–14; Δx > 0 ahead of the slug): porosity, grain velocity and the gas pressure
-    gradient −∂P′/∂x (the drag per unit volume on the packing), from the porosity, grain
-    velocity and gas pressure fields of the records, shifted to each catalogued slug's centre
+    (SMH Figs. 12–16; Δx > 0 ahead of the slug): porosity, grain velocity, the gas pressure
+    gradient −∂P′/∂x (the drag per unit volume on the packing), and where the dataset has them
+    the wall normal stress, granular temperature and contact force per grain, from the fields
+    of the records, shifted to each catalogued slug's centre
     (slugs of ≥ ``min_grains`` grains centred in ``x_window`` [m], time ≥ t_min) by linear
     interpolation and averaged.  Returns an xarray.Dataset on ``dx_over_d``.
     """
@@ -563,7 +588,10 @@ def slug_profiles(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, dx_max_d=
     pick = (st >= t_min) & (sg >= min_grains) & (sx >= x_window[0]) & (sx <= x_window[1])
     phi, ux, p = ds["porosity"].values, ds["grain_velocity"].values, ds["gas_pressure"].values
     dpdx = -np.gradient(p, x, axis=1)
-    acc = {k: np.zeros_like(q) for k in ("porosity", "grain_velocity", "drag")}
+    extra = [k for k in ("wall_normal_stress", "granular_temperature", "contact_force") if k in ds]
+    fields = {"porosity": phi, "grain_velocity": ux, "drag": dpdx, **{k: ds[k].values for k in extra}}
+    acc = {k: np.zeros_like(q) for k in fields}
+    cnt_f = {k: np.zeros_like(q) for k in fields}
     cnt = np.zeros_like(q)
     for i in np.flatnonzero(pick):
         k = int(np.argmin(np.abs(t - st[i])))
@@ -573,16 +601,26 @@ def slug_profiles(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, dx_max_d=
             ok = np.ones_like(q, bool)
         else:
             ok = (xs >= x[0]) & (xs <= x[-1])
-        for name, f in (("porosity", phi[k]), ("grain_velocity", ux[k]), ("drag", dpdx[k])):
-            acc[name][ok] += np.interp(xs[ok], x, f)
+        for name, f in fields.items():
+            fk = f[k]
+            good = np.isfinite(fk)
+            if good.sum() < 2:
+                continue
+            vals = np.interp(xs[ok], x[good], fk[good])
+            acc[name][ok] += vals
+            cnt_f[name][ok] += 1
         cnt[ok] += 1
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = {k: v / cnt for k, v in acc.items()}
+        mean = {k: v / cnt_f[k] for k, v in acc.items()}
+    units = {"wall_normal_stress": ("Pa", "mean wall normal stress"),
+             "granular_temperature": ("m2 s-2", "mean granular temperature"),
+             "contact_force": ("N", "mean contact force per grain")}
+    extra_vars = {k: ("dx_over_d", mean[k], dict(units=units[k][0], long_name=units[k][1])) for k in extra}
     return xr.Dataset(
         {"porosity": ("dx_over_d", mean["porosity"], dict(units="1", long_name="mean porosity")),
          "grain_velocity": ("dx_over_d", mean["grain_velocity"], dict(units="m s-1", long_name="mean axial grain velocity")),
          "drag": ("dx_over_d", mean["drag"], dict(units="Pa m-1", long_name="-dP/dx, gas force per unit volume")),
-         "samples": ("dx_over_d", cnt, dict(units="1", long_name="slug records averaged"))},
+         "samples": ("dx_over_d", cnt, dict(units="1", long_name="slug records averaged")), **extra_vars},
         coords={"dx_over_d": ("dx_over_d", q, dict(units="1", long_name="distance from the slug centre / d"))})
 
 
