@@ -152,14 +152,9 @@ def _case_lines(case: Case) -> list[str]:
 
 
 def _mesh(case: Case):
-    import rans
+    from eulag.coupling import build_mesh
 
-    n = case.numerics
-    return rans.PipeMesh.build(
-        diameter=case.pipe.diameter, length=case.pipe.length, mode=case.pipe.mode,
-        axial_cells=n.axial_cells, radial_cells=n.radial_cells, azimuthal_cells=n.azimuthal_cells,
-        first_cell_yplus=n.first_cell_yplus, bulk_velocity=case.gas.bulk_velocity,
-        density=case.gas.density, viscosity=case.gas.viscosity)
+    return build_mesh(case)
 
 
 def _mass_flows(case: Case) -> tuple[float, float]:
