@@ -6,6 +6,8 @@
     eulag study error-runtime CASE.toml   [--quick] [-o DIR] [--resume] [--report] [--quiet]
     eulag study stability                 [--quick] [-o DIR] [--resume] [--report] [--quiet] [--parcels N]
                                           [--only ...]
+    eulag study ding-friction             [--quick] [-o DIR] [--resume] [--report] [--quiet]
+                                          [--only MODELS] [--rates LIST]
 
 Each study runs its cases through :func:`eulag.runs.execute` (one dataset ``<run>.nc`` per
 case in the output folder, default ``results/<study>/``), then writes a generated table
@@ -58,6 +60,7 @@ import time
 from typing import Callable
 
 from .ablation import ablation_cases, study_scenes_ablation
+from .ding_friction import study_cases as ding_friction_cases, study_ding_friction
 from .error_runtime import Setting, error_runtime_plan, study_error_runtime
 from .profiles import diameter_profile, pareto_front, profile_deviation, provenance, read_measurements
 from .report import Column, machine_info, markdown_table, table_frame, write_csv, write_report
@@ -79,9 +82,10 @@ __all__ = ["add_arguments", "STUDIES", "BASE_CASE", "QUICK_NUMERICS", "STABILITY
            "markdown_table", "write_csv", "write_report", "diameter_profile", "profile_deviation",
            "pareto_front", "provenance", "read_measurements", "Setting", "error_runtime_plan",
            "scene_cases", "stability_cases", "tsuji_morikawa_cases", "study_error_runtime", "study_scenes",
-           "study_stability", "study_tsuji_morikawa", "ablation_cases", "study_scenes_ablation"]
+           "study_stability", "study_tsuji_morikawa", "ablation_cases", "study_scenes_ablation",
+           "ding_friction_cases", "study_ding_friction"]
 
-STUDIES = ("tsuji-morikawa", "scenes", "scenes-ablation", "error-runtime", "stability")
+STUDIES = ("tsuji-morikawa", "scenes", "scenes-ablation", "error-runtime", "stability", "ding-friction")
 
 
 def add_arguments(parser) -> None:
@@ -116,6 +120,14 @@ def add_arguments(parser) -> None:
     _common(p, "stability", only="comma-separated case names to run (default: all)")
     p.set_defaults(func=_entry(study_stability))
 
+    p = sub.add_parser("ding-friction", help="dense-phase two-fluid model: five gas rates x three frictional-"
+                                             "stress models against Ding et al. (2024)")
+    _common(p, "ding-friction", only="comma-separated friction models, e.g. berzi,dartevelle (default: all three)")
+    p.add_argument("--rates", metavar="LIST",
+                   help="comma-separated supplementary gas rates of cases/two_fluid (default: 0.4,0.6,0.8,1.0,1.2; "
+                        "quick: 0.8)")
+    p.set_defaults(func=_entry(study_ding_friction))
+
 
 def _common(p, name: str, only: str | None = None) -> None:
     if only is not None:
@@ -130,7 +142,7 @@ def _common(p, name: str, only: str | None = None) -> None:
                    help="run nothing: write the table from the datasets, records and checkpoints "
                         "already in the output folder (an unfinished run's row says how far it got)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
-    if name != "error-runtime":  # there the parcel count is an axis of the study
+    if name not in ("error-runtime", "ding-friction"):  # an axis there; no parcels in the two-fluid model
         p.add_argument("--parcels", type=_positive_int, metavar="N",
                        help="parcels per pass in the final passes of every run (a lighter full-mode "
                             "study; the stability study's 1e6-parcel case keeps its count)")
