@@ -59,7 +59,7 @@ GRIDS = ((16, 32), (24, 48), (32, 64))
 QUICK_GRID = (8, 16)
 QUICK_GRIDS = ((6, 12), (8, 16), (10, 20))
 #: what a record holds: bump when the extracted metrics change
-RECORD_VERSION = 1
+RECORD_VERSION = 2
 
 #: The paper's Table 5 (modified Berzi, Q_s = 0.8 m3/h, 3-D meshes): name, inlet cells, axial size [mm],
 #: total cells, simulated Δp [kPa]; measured 4.26 kPa.
@@ -171,7 +171,7 @@ def _dataset_key(case) -> str:
 def _write_json(path: Path, data: dict) -> None:
     from eulag.output import atomic_write
 
-    text = json.dumps(_to_json(data), indent=1, default=str)
+    text = json.dumps(_to_json(data), separators=(",", ":"), default=str)
     atomic_write(path, lambda tmp: Path(tmp).write_text(text))
 
 
@@ -365,11 +365,16 @@ def extract_metrics(ds, case) -> dict:
     prof = {}
     for k, f in fields.items():
         h, v = _vertical(f, r, theta, R)
-        prof["h"], prof[k] = h, v
+        prof["h"], prof[k] = _short(h), _short(v)
     m["profiles"] = prof
-    m["section"] = {"z": np.asarray(ds["z"].values, float).reshape(-1) / R,
-                    "y": np.asarray(ds["y"].values, float).reshape(-1) / R, "alpha": alpha.reshape(-1)}
+    m["section"] = {"z": _short(np.asarray(ds["z"].values, float).reshape(-1) / R),
+                    "y": _short(np.asarray(ds["y"].values, float).reshape(-1) / R), "alpha": _short(alpha.reshape(-1))}
     return m
+
+
+def _short(v: np.ndarray) -> np.ndarray:
+    """``v`` to 5 significant digits (what the figures need; keeps the records small)."""
+    return np.array([float(f"{x:.5g}") for x in np.asarray(v, float).reshape(-1)])
 
 
 # ---------------------------------------------------------------------------- the study
@@ -633,7 +638,7 @@ def _fig_sections(outdir, plan, records):
     models = [m for m in MODELS if any((r, m) in mx for r in rates)]
     fig = _figure()(2.2 * len(rates) + 1.0, 2.3 * len(models))
     axes = np.atleast_2d(fig.subplots(len(models), len(rates), squeeze=False))
-    levels = np.linspace(0.0, 0.55, 23)
+    levels = np.linspace(0.0, 0.63, 22)
     cs = None
     for i, m in enumerate(models):
         for j, r in enumerate(rates):
@@ -645,7 +650,7 @@ def _fig_sections(outdir, plan, records):
                 continue
             s = mx[(r, m)]["section"]
             z, y, a = (np.asarray(s[k]) for k in ("z", "y", "alpha"))
-            cs = ax.tricontourf(Triangulation(z, y), np.clip(a, 0, 0.55), levels=levels, cmap="viridis")
+            cs = ax.tricontourf(Triangulation(z, y), np.clip(a, 0.0, 0.63), levels=levels, cmap="viridis")
             ax.add_patch(Circle((0, 0), 1.0, fill=False, lw=0.8))
             ax.set_xlim(-1.02, 1.02)
             ax.set_ylim(-1.02, 1.02)
@@ -733,7 +738,7 @@ def _fig_frictional_pressure_closures(outdir, plan, records):
         ax.set_ylabel("p_f [Pa]")
         ax.grid(alpha=0.3)
     axes[0].set_ylim(0, 60)
-    axes[1].legend(fontsize=7)
+    axes[0].legend(fontsize=7, loc="upper left")
     fig.suptitle("Frictional pressure of the closures (after Fig. 7; tfm.friction, Table 4 constants)")
     return _save(fig, outdir / "fig7_frictional_pressure_closures.png")
 
