@@ -815,6 +815,16 @@ def _agreement(values) -> tuple[Any, float]:
     return best, best_n / len(values)
 
 
+def dataset_replicas(ds: xr.Dataset) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The (u_y, u_z) replicas a coupled dataset stores (``replica_gas_uy/uz``: the gas at the
+    first reported station solved on each final pass's own sources), for
+    :func:`replica_pattern_metrics` with ``template=ds``; [] when the dataset has none."""
+    if "replica_gas_uy" not in ds:
+        return []
+    uy, uz = ds["replica_gas_uy"].values, ds["replica_gas_uz"].values
+    return [(uy[i], uz[i]) for i in range(uy.shape[0])]
+
+
 def replica_pattern_metrics(replicas, x: float | None = None, template: xr.Dataset | None = None,
                             **options) -> dict:
     """:func:`pattern_metrics` of replicas of one section, with error bars.

@@ -543,6 +543,10 @@ class CouplingLoop:
         self.window_n = 0
         self.window_batches = 0
         self.window_parcels = 0
+        self.final_sources = []  # each final pass's sampled momentum and k sources
+        self.replicas = []  # gas (ux, uy, uz) at the first station, solved on each final pass's sources
+        self.gas_relaxed = None
+        self.gas_field_note = "last relaxed iterate of the coupling loop"
         self.last_sample = None
         if resume and self.checkpoint is not None and self.checkpoint.exists():
             self._load()
@@ -556,13 +560,15 @@ class CouplingLoop:
     # there, a failed solve goes straight to the halving of the source relaxation α.
     _GAS_RELAXATION = ((1.0, 1.0), (0.7, 1.0), (0.5, 0.7))
 
-    def _solve_gas(self, sources):
+    def _solve_gas(self, sources, final=False):
         """The gas field with ``sources`` (None: single phase), its wall time and the implicit
-        k-ε relaxation it needed (1 unless a first attempt diverged)."""
+        k-ε relaxation it needed (1 unless a first attempt diverged).  ``final``: a solve to
+        convergence (periodic mode: not capped at gas_iterations_per_pass), from the last
+        iterate."""
         n = self.case.numerics
         g = self.case.gas
         initial = self.gas if self.mesh.mode == "periodic" else None
-        inner = sources is not None and self.mesh.mode == "periodic"
+        inner = sources is not None and self.mesh.mode == "periodic" and not final
         cap = n.gas_iterations_per_pass if inner else n.gas_max_iterations
         t0 = time.perf_counter()
         try:
@@ -716,9 +722,14 @@ class CouplingLoop:
                 + 'physics.partner_momentum = "returned" gives the partners\' impulse back to the cell)')
         if self.phase == "final":
             self._add_to_window(sample)
+            if self.two_way:
+                c = self._computed_sources(sample)
+                self.final_sources.append({"momentum": c["momentum"], "k": c["k"]})
             self.final_left -= 1
             if self.final_left <= 0:
                 self.finished = True
+                if self.two_way:
+                    self._final_gas_solves()
                 self.converged = (self.converged or not self.two_way) and bool(self.gas.converged)
         elif self._converged_now():
             self.converged = True
@@ -774,6 +785,37 @@ class CouplingLoop:
             self.alpha_changed_at = self.pass_index - 1
             self._tell(f"pass {self.pass_index}: the residual stagnates above {tol:g} "
                        f"(last {w} passes {last.min():.3g}-{last.max():.3g}); relaxation halved to {self.alpha:g}")
+
+    def _final_gas_solves(self):
+        """The gas field of the dataset: one solve with the sources of the averaged final passes
+        (the particle statistics of the dataset are that average too), applied as sampled,
+        without relaxation; and, for error bars of the section's pattern, one solve on each final
+        pass's own sources (``self.replicas``: the gas velocities at the first reported station).
+        The relaxed iterate the loop ended with is kept as ``self.gas_relaxed``."""
+        avg = self._computed_sources(self.sample())
+        self.gas_relaxed = self.gas
+
+        def solve(src):
+            d = {"momentum": src["momentum"], "k": src["k"], "k_ref": self.gas_relaxed.k,
+                 "eps_ref": self.gas_relaxed.epsilon}
+            field_, _, _ = self._solve_gas(self._gas_sources(d), final=True)
+            return field_
+
+        try:
+            self.gas = solve(avg)
+        except rans.SolverDivergence as err:
+            raise CouplingError(f"the gas solve on the averaged sources of the final passes failed ({err}); "
+                                "the relaxed iterate converged, so the final passes' sources differ "
+                                "more than their relaxation hid") from None
+        self.gas_field_note = "solve on the averaged sources of the final passes"
+        i = int(np.argmin(np.abs(np.asarray(self.mesh.x) - self.case.pipe.sections[0])))
+        self.replicas = []
+        for src in self.final_sources:
+            try:
+                r = solve(src)
+            except rans.SolverDivergence:
+                continue  # the replica is missing; its error bar rests on the others
+            self.replicas.append(np.stack([np.asarray(r.ux)[i], np.asarray(r.uy)[i], np.asarray(r.uz)[i]]))
 
     def _tell(self, text):
         if self.notify is not None:
@@ -909,13 +951,18 @@ class CouplingLoop:
                 arrays[f"window_{i}"] = v
         for k, v in self.history.arrays().items():
             arrays[f"hist_{k}"] = v
+        for i, src in enumerate(self.final_sources):
+            arrays[f"final_{i}_momentum"] = src["momentum"]
+            arrays[f"final_{i}_k"] = src["k"]
+        for i, rep in enumerate(self.replicas):
+            arrays[f"replica_{i}"] = rep
         meta = {"version": CHECKPOINT_VERSION, "case": self.case.to_attrs(), "pass_index": self.pass_index,
                 "phase": self.phase, "final_left": self.final_left, "converged": self.converged,
                 "finished": self.finished, "alpha": self.alpha, "alpha_changed_at": self.alpha_changed_at,
                 "drift_told_at": self.drift_told_at,
                 "alpha_cap": self.alpha_cap, "recovered": self.recovered,
                 "converged_at": self.converged_at, "criteria": [c.__dict__ for c in self.criteria],
-                "window_n": self.window_n,
+                "window_n": self.window_n, "gas_field_note": self.gas_field_note,
                 "window_batches": self.window_batches, "window_parcels": self.window_parcels,
                 "timings": self.timings}
         arrays["meta"] = np.frombuffer(json.dumps(meta, default=_json_default).encode(), dtype=np.uint8)
@@ -978,6 +1025,15 @@ class CouplingLoop:
         self.alpha_cap = meta.get("alpha_cap", self.alpha)
         self.recovered = meta.get("recovered", False)
         self.converged_at = meta.get("converged_at")
+        self.gas_field_note = meta.get("gas_field_note", self.gas_field_note)
+        i = 0
+        while f"final_{i}_momentum" in data:
+            self.final_sources.append({"momentum": data[f"final_{i}_momentum"], "k": data[f"final_{i}_k"]})
+            i += 1
+        i = 0
+        while f"replica_{i}" in data:
+            self.replicas.append(data[f"replica_{i}"])
+            i += 1
         self.criteria = [Criterion(**c) for c in meta.get("criteria", [])]
         self.drift_told_at = meta.get("drift_told_at", -1)
         self.timings.update(meta["timings"])

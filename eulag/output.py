@@ -359,6 +359,14 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
                                       {"long_name": "criterion met at the last judged pass",
                                        "flag_values": np.array([0, 1], dtype=np.int8),
                                        "flag_meanings": "not_met met"})
+    if loop.replicas:  # the gas at the first station, solved on each final pass's own sources
+        rep = np.stack(loop.replicas)  # (replica, 3, nr, nt)
+        for c, comp in enumerate("xyz"):
+            ds[f"replica_gas_u{comp}"] = _var(
+                ("replica", "r", "theta"), rep[:, c], "m s-1",
+                f"gas velocity {comp} at x = {case.pipe.sections[0]:g} m (the nearest station), solved on the "
+                "sources of one final pass alone: the replicas behind the pattern metrics' error bars",
+                coordinates="y z")
     ds["time_gas_solve_pass"] = _var(it, h["time_gas"], "s", "wall-clock time of the pass's gas solve")
     ds["time_lagrangian_pass"] = _var(it, h["time_particles"], "s", "wall-clock time of the Lagrangian pass")
 
@@ -390,6 +398,7 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
         "additional_pressure_loss_coefficient": lam_z,
         "relaxation_final": float(h["relaxation"][-1]),
         "stop_reason": loop.stop_reason,
+        "gas_field": loop.gas_field_note,
     })
     if attrs:
         ds.attrs.update(attrs)
