@@ -82,3 +82,26 @@ def test_bad_option_exits_2_with_one_line(argv, message, capsys, tmp_path, monke
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("eulag: error:") and message in err[0]
     assert not any(tmp_path.rglob("*.nc"))
+
+
+def test_a_failing_run_is_one_line_and_the_study_goes_on(tmp_path, monkeypatch, capsys):
+    from eulag import runs
+
+    real = runs.execute
+
+    def execute(case, out=None, **kw):
+        if case.name.endswith("__6x12"):
+            raise RuntimeError("two-fluid x: alpha_s = nan in cell 3 (ring 0, sector 3) at iteration 7")
+        return real(case, out, **kw)
+
+    monkeypatch.setattr(runs, "execute", execute)
+    out = tmp_path / "ding"
+    assert study("--quick", "--quiet", "--only", "berzi", "-o", out) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "1 of 3 runs did not finish" in err[0]
+    grid = rows(out / "ding-friction-grid.csv")
+    failed = [g for g in grid if g["mesh"] == "6x12"]
+    assert failed[0]["converged"].startswith("failed: two-fluid x: alpha_s = nan in cell 3")
+    assert "\n" not in failed[0]["converged"]
+    assert (out / "ding_qs0.8__berzi__6x12.failed.json").is_file()
+    assert [r["model"] for r in rows(out / "ding-friction.csv")] == ["berzi"]
