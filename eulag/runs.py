@@ -317,5 +317,7 @@ def _execute_other(case: ModelCase, out, *, resume: bool, progress) -> RunResult
         ds = getattr(_model_module(case.model), runner)(case.data, out, resume=resume, progress=progress is not None)
     except (CaseError, ValueError) as exc:
         raise BadInput(" ".join(str(exc).split())) from None
+    except (RuntimeError, FloatingPointError, ArithmeticError) as exc:  # a failing solve: one line
+        raise RunError(" ".join(f"{exc}".split()) or type(exc).__name__) from None
     ok = ds.attrs.get("converged", "true") == "true"
     return RunResult(case, out, ds, ok, ds.attrs.get("stop_reason", "finished"))
