@@ -158,7 +158,9 @@ def _progress_bar(case, total: int):
     if sys.stderr.isatty():
         from tqdm import tqdm
 
-        return tqdm(total=total, desc=case.name, unit="pass", file=sys.stderr, dynamic_ncols=True)
+        # no ETA: the loop stops when converged, usually well before max_passes
+        return tqdm(total=total, desc=case.name, unit="pass", file=sys.stderr, dynamic_ncols=True,
+                    bar_format="{desc}: pass {n} of at most {total} [{elapsed}] {postfix}")
     return None
 
 
