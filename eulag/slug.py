@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "dataset_from_checkpoint", "DEFAULTS", "SLUG_POROSITY"]
+__all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "gas_force_on_grains", "dataset_from_checkpoint", "DEFAULTS", "SLUG_POROSITY"]
 
 #: Slug criterion of the catalogue: slices (gas cells along x) with porosity below this.
 SLUG_POROSITY = 0.6
@@ -145,6 +145,21 @@ def validate_slug_case(case: dict) -> dict:
             raise _bad("initial", "plug_length_m", out["initial"]["plug_length_m"],
                        "plug_start_m + plug_length_m <= tube.length_m")
     return out
+
+
+def gas_force_on_grains(transfer, pos, status, grad, phi, v_grain, min_solid):
+    """Gas force [N] (N, 3) on the grains: F_i = −V_p ∇P_i / (1 − φ_i), with ∇P_i and φ_i the tent
+    interpolations (eq. 9) of the node fields grad (nx, ny, ny, 3) [Pa/m] and phi (nx, ny, ny);
+    1 − φ_i floored at ``min_solid``; zero on grains that are not FREE.  (SMH eq. 6 as printed,
+    −∇P/(ρ_s(1 − φ)), is an acceleration; summed over the grains of a volume this force is
+    −∇P per unit volume, the Darcy drag of the packing.)"""
+    from dem import FREE
+
+    vals = transfer.to_grains(pos, status, np.concatenate([grad, phi[..., None]], axis=3))
+    solid = np.maximum(1.0 - vals[:, 3], min_solid)
+    f = -v_grain * vals[:, :3] / solid[:, None]
+    f[status != FREE] = 0.0
+    return f
 
 
 # ---------------------------------------------------------------------------------------------
@@ -289,13 +304,8 @@ class _Simulation:
         phi = np.clip(phi, 0.2, 1.0)
         self.phi, self.u = phi, u
         self.darcy.step(phi, u, self.gas_dt, self.v_s)
-        grad = self.darcy.gradient()
-        field = np.concatenate([grad, phi[..., None]], axis=3)
-        vals = self.transfer.to_grains(g.pos[:n], g.status[:n], field)
-        solid = np.maximum(1.0 - vals[:, 3], self.c["numerics"]["min_solid_fraction_force"])
-        gf = -self.model.volume * vals[:, :3] / solid[:, None]
-        gf[g.status[:n] != self.FREE] = 0.0
-        self.gas_force[:n] = gf
+        self.gas_force[:n] = gas_force_on_grains(self.transfer, g.pos[:n], g.status[:n], self.darcy.gradient(), phi,
+                                                 self.model.volume, self.c["numerics"]["min_solid_fraction_force"])
         t2 = time.perf_counter()
         self.t_gas += t2 - t1
         self.t_total += t2 - t0

@@ -170,3 +170,22 @@ def test_summarize_recovers_the_speed_of_a_synthetic_slug():
     assert s["pressure_drop_per_length_Pa_m"] == pytest.approx(50.0 / 0.07)
     prof = slug.slug_profiles(ds, x_window=(0.0, 0.07))
     assert np.allclose(prof.porosity, 1.0) and prof.samples.min() == 100
+
+
+def test_gas_force_sums_to_minus_grad_p_times_volume():
+    """Summed over a uniform packing, F_i = −V_p ∇P/(1 − φ_i) gives −∇P × the tube volume (the
+    Darcy drag per unit volume of the mixture), not −∇P × the solids volume."""
+    rng = np.random.default_rng(5)
+    length, n = 0.07, 300_000
+    pos = _uniform_centres(n, length, rng)
+    v_p_scaled = 0.5 * math.pi * RT**2 * length / n  # points weighted as grains of this volume: φ = 0.5
+    tr = TentTransfer(20, 2, length, RT, R, periodic=True)
+    tr.v_grain = v_p_scaled
+    status = np.full(n, FREE, dtype=np.int8)
+    phi, _ = tr.porosity_velocity(pos, np.zeros_like(pos), status)
+    grad = np.zeros(phi.shape + (3,))
+    grad[..., 0] = -2000.0
+    f = slug.gas_force_on_grains(tr, pos, status, grad, phi, v_p_scaled, 0.05)
+    total = f.sum(axis=0)
+    assert total[0] == pytest.approx(2000.0 * math.pi * RT**2 * length, rel=0.01)
+    assert abs(total[1]) < 1e-12 and abs(total[2]) < 1e-12
