@@ -33,6 +33,10 @@ def __getattr__(name):
     raise AttributeError(f"module 'eulag' has no attribute {name!r}")
 
 
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
+
+
 def open_dataset(path):
     """A result file of ``eulag run`` as an in-memory ``xarray.Dataset`` (the file is closed)."""
     import xarray as xr

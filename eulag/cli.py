@@ -198,6 +198,13 @@ def cmd_run(args) -> int:
         else:
             print(f"{case.name}: {text}", file=sys.stderr, flush=True)
 
+    if not args.quiet:
+        what = (f"{case.physics.coupling}, {case.numerics.parcels} parcels per final pass, at most "
+                f"{case.numerics.max_passes} passes" if coupled else
+                "single-phase gas" if isinstance(case, Case) else f"model {case.model}")
+        print(f"eulag {eulag.__version__}: case {case.name} ({what}) -> {out}"
+              + ("; a first run compiles the particle kernels (about a minute)" if coupled else ""),
+              flush=True)
     try:
         result = runs.execute(case, out, resume=args.resume, progress=progress, notify=notify, tracker=tracker,
                               plots=coupled and not args.no_plots,
@@ -216,7 +223,8 @@ def cmd_run(args) -> int:
         if result.loop is not None:
             print(_coupled_summary(case, result.loop, result.dataset, out))
         elif result.field is not None:
-            print(_summary(case, result.mesh, result.field, out, result.timings, result.timings.get("write", 0.0)))
+            print(_summary(case, result.mesh, result.field, out, result.timings, result.timings.get("write", 0.0),
+                           result.dataset))
         else:
             print(f"eulag {eulag.__version__}: case {case.name} ({case.model}): {result.stop_reason}; written {out}")
         if result.figures:
@@ -302,7 +310,7 @@ def _coupled_summary(case, loop, ds, out) -> str:
         f"eulag {eulag.__version__}: case {case.name} ({case.physics.coupling}, {case.pipe.mode}), "
         f"Re = {case.reynolds_number:.4g}",
         f"  passes       {len(h.residual)} ({'converged' if loop.converged else 'NOT converged'}), "
-        f"final residual {h.residual[-1]:.3g}, relaxation {h.relaxation[-1]:g}",
+        f"residual of the last pass {h.residual[-1]:.3g}, relaxation {h.relaxation[-1]:g}",
         f"  verdict      {loop.stop_reason}",
         *_criteria_lines(loop),
         f"  -dp/dx       {float(np.mean(ds.pressure_gradient)):.4g} Pa/m (single-phase "
@@ -364,10 +372,12 @@ def _final(field) -> float:
     return float(res[-1]) if res else math.nan
 
 
-def _summary(case, mesh, field, out, timings, t_write) -> str:
+def _summary(case, mesh, field, out, timings, t_write, ds=None) -> str:
     """A short human-readable summary of a single-phase run."""
     import numpy as np
     from fluids.friction import Colebrook
+
+    from eulag import check
 
     nx, nr, nt = mesh.shape
     re_b = case.reynolds_number
@@ -385,6 +395,7 @@ def _summary(case, mesh, field, out, timings, t_write) -> str:
         f"  wall y+      {yp.mean():.1f} (min {yp.min():.1f}, max {yp.max():.1f}) {where}",
         f"  -dp/dx       {dpdx:.4g} Pa/m {where}",
         f"  friction f_D {f_d:.5f} vs Colebrook (smooth) {f_ref:.5f}: {100 * (f_d / f_ref - 1):+.1f} %",
+        *[ln for ln in [check.total_pressure_drop_line(ds)] if ln],
         f"  wall time    mesh {timings['mesh']:.2f} s, gas solve {timings['gas_solve']:.2f} s, "
         f"write {t_write:.2f} s",
         f"  written      {out}",
@@ -413,19 +424,23 @@ def cmd_cases(args) -> int:
     """The packaged cases by name, with their description."""
     from eulag import runs
 
+    rows = []
     for name, path in runs.packaged_cases().items():
         try:
             case = runs.load_case(path)
             text = getattr(case, "description", None) or getattr(case, "data", {}).get("description", "")
         except runs.RunError as exc:
             text = f"(invalid: {exc})"
-        first = " ".join(str(text).split())[:90]
-        print(f"{name:28s} {path.relative_to(runs.CASES_DIR)}  {first}")
+        rows.append((name, str(path.relative_to(runs.CASES_DIR)), " ".join(str(text).split())))
+    w0 = max(len(r[0]) for r in rows)
+    w1 = max(len(r[1]) for r in rows)
+    for name, rel, text in rows:
+        print(f"{name:{w0}s}  {rel:{w1}s}  {text}")
     return EXIT_OK
 
 
 def cmd_export(args) -> int:
-    """A dataset's cell fields on the 3-D pipe as a VTK structured grid (eulag.export)."""
+    """A dataset's cell fields on the 3-D pipe as a VTK unstructured grid (.vtu; eulag.export)."""
     from eulag import export
 
     src = Path(args.dataset)
@@ -481,7 +496,7 @@ def cmd_sweep(args) -> int:
             for i, e in enumerate(entries):
                 if e.output.is_file():
                     try:
-                        rows[i] = sweep._read_row(e, sweep.FINISHED_EARLIER if e.finished else sweep.RAN)
+                        rows[i] = sweep.read_row(e, sweep.FINISHED_EARLIER if e.finished else sweep.RAN)
                     except Exception:  # noqa: BLE001
                         pass
         csv_path, md_path = sweep.write_summary(rows, args.output_dir)

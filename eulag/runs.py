@@ -32,7 +32,7 @@ from typing import Any, Callable
 from eulag.config import CASES_DIR, Case, CaseError, packaged_cases
 
 __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
-           "output_path", "finished_run", "execute", "run"]
+           "output_path", "finished_run", "execute", "run", "with_parcels"]
 
 #: The models a case can name with its top-level ``model`` key, and the module that runs each.
 MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
@@ -138,10 +138,16 @@ def load_case(spec: str | Path, *, parcels: int | None = None):
         case = Case.from_toml(path)
     except CaseError as exc:
         raise BadInput(str(exc)) from None
-    if parcels is not None:
-        n = case.numerics
-        case = case.replace(numerics={"parcels": parcels, "parcels_start": min(n.parcels_start, parcels)})
-    return case
+    return with_parcels(case, parcels)
+
+
+def with_parcels(case: Case, parcels: int | None) -> Case:
+    """``case`` with ``parcels`` per final pass (and at most that many in the early passes);
+    None: unchanged.  The one place the ``--parcels`` option is applied."""
+    if parcels is None:
+        return case
+    n = case.numerics
+    return case.replace(numerics={"parcels": int(parcels), "parcels_start": min(n.parcels_start, int(parcels))})
 
 
 def _model_module(model: str):
@@ -218,9 +224,7 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
     """
     if isinstance(case, ModelCase):
         return _execute_other(case, out, resume=resume, progress=progress)
-    if parcels is not None:
-        n = case.numerics
-        case = case.replace(numerics={"parcels": parcels, "parcels_start": min(n.parcels_start, parcels)})
+    case = with_parcels(case, parcels)
     out = Path(out) if out is not None else None
     if case.particles is None:
         result = _single_phase(case, out, resume=resume, gas_progress=gas_progress)

@@ -34,7 +34,7 @@ import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
-from eulag.config import Case, CaseError
+from eulag.config import Case
 from eulag.output import is_converged
 
 __all__ = ["SweepInputError", "SweepCase", "plan_sweep", "run_case", "run_sweep", "write_summary",
@@ -77,7 +77,7 @@ def plan_sweep(paths, output_dir=".", parcels=None):
 
     Raises :class:`SweepInputError` (nothing run, nothing written except ``output_dir``).
     """
-    from eulag.runs import RunError, finished_run
+    from eulag.runs import RunError, finished_run, load_case
 
     if not paths:
         raise SweepInputError("no case files given")
@@ -88,12 +88,11 @@ def plan_sweep(paths, output_dir=".", parcels=None):
     by_name = {}
     for p in paths:
         try:
-            case = Case.from_toml(p)
-        except CaseError as exc:
+            case = load_case(p, parcels=parcels)
+        except RunError as exc:
             raise SweepInputError(str(exc)) from None
-        if parcels is not None:
-            case = case.replace(numerics={"parcels": int(parcels),
-                                          "parcels_start": min(case.numerics.parcels_start, int(parcels))})
+        if not isinstance(case, Case):
+            raise SweepInputError(f"{p}: model = {case.model!r}; a sweep runs Euler-Lagrange cases")
         if case.name in by_name:
             raise SweepInputError(f"{p}: case name {case.name!r} is also the name of {by_name[case.name]}; "
                                   "every case of a sweep needs its own name (its output is <name>.nc)")
@@ -185,7 +184,7 @@ def summary_row(name, ds, output, status, wall_time, error=""):
     return row
 
 
-def _read_row(entry, status):
+def read_row(entry, status):
     import xarray as xr
 
     with xr.open_dataset(entry.output) as ds:
@@ -230,7 +229,7 @@ def run_sweep(entries, client=None, *, numba_threads=None, progress=None, summar
     todo = []
     for e in entries:
         if e.finished:
-            rows[e.name] = _read_row(e, FINISHED_EARLIER)
+            rows[e.name] = read_row(e, FINISHED_EARLIER)
             say(f"{e.name}: finished earlier ({e.output}); not run again")
         else:
             todo.append(e)

@@ -43,11 +43,10 @@ class _BadInput(Exception):
 
 
 def _with_parcels(case: Case, parcels: int | None) -> Case:
-    """``case`` with ``parcels`` per final pass (and at most that many earlier); None: unchanged."""
-    if parcels is None:
-        return case
-    return case.replace(numerics={"parcels": parcels,
-                                  "parcels_start": min(case.numerics.parcels_start, parcels)})
+    """``case`` with ``parcels`` per final pass (``eulag.runs.with_parcels``)."""
+    from eulag.runs import with_parcels
+
+    return with_parcels(case, parcels)
 
 
 def _output_dir(args) -> Path:
