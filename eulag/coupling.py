@@ -892,6 +892,12 @@ class CouplingLoop:
         if self.converged:
             return (f"converged after pass {self.converged_at}; then {self.window_n} final passes "
                     "averaged")
+        if self.converged_at is not None and not self.gas.converged:
+            sc = getattr(self.gas, "station_converged", None)
+            where = (f" at {int(np.size(sc) - np.count_nonzero(sc))} of {np.size(sc)} stations"
+                     if sc is not None else "")
+            return (f"not converged: the loop converged after pass {self.converged_at}, but the gas solve on "
+                    f"the {self.window_n} final passes' averaged sources did not reach gas_tolerance{where}")
         failed = [c.line() for c in self.criteria if not c.met]
         if not failed:
             failed = ["the gas solve of a final pass did not converge"]
