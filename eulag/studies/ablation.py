@@ -23,6 +23,7 @@ from pathlib import Path
 
 from eulag.config import DEVIATIONS, PAPER_MODEL, CASES_DIR, Case, CaseError
 
+from .patterns import PAPER_PATTERN, pattern_columns
 from .report import Column, _run_cells, _run_columns, _settings_text, write_report
 from .runner import _BadInput, _finish, _quick, _select, _with_parcels, run_case
 
@@ -31,17 +32,6 @@ ABLATION_SCENES = tuple("bdegh")
 #: and 8,000 in the final passes (about 1/80 of the scenes' cells and 1/30 of their parcels).
 PROXY_NUMERICS = {"axial_cells": 40, "radial_cells": 10, "azimuthal_cells": 20, "parcels": 8000,
                   "parcels_start": 4000, "batch_size": 250, "max_passes": 40}
-#: The reference paper's pattern per scene (its results section at x = 3.56 m, U0 = 10 m/s).
-PAPER_PATTERN = {
-    "a": (2, "2 fairly symmetric cells, ≈ 0.2 % of U0"),
-    "b": (4, "4 cells, saddle near the centre"),
-    "c": (2, "2 cells"),
-    "d": (4, "4 cells, upper pair smaller"),
-    "e": (2, "2 large cells, ≈ 1 % of U0"),
-    "f": (2, "2 cells and an incipient upper cell"),
-    "g": (2, "2 very clear cells, ≈ 2.5 % of U0"),
-    "h": (4, "4 cells (two upper cells appear)"),
-}
 #: Alternatives tried where the paper's form is eulag's default.
 ALTERNATIVES = {"physics.partner_momentum": "returned"}
 
@@ -110,6 +100,7 @@ def extract_metrics(ds, case: Case) -> dict:
            "sense": m["main_pair_sense"] or "-", "strength": m["strength"],
            "interior": m["interior_solenoidal_max"], "peak_ratio": m["upper_lower_peak_ratio"],
            "dpdx": float(sec["pressure_gradient"].values), "k_axis": k_axis / _axis_k_single_phase(case)}
+    out.update({f"pattern_{k}": v for k, v in pattern_columns(ds, x).items()})
     for c in "xyz":
         name = f"particle_collision_force_total_{c}"
         out[f"coll_{c}"] = float(ds[name]) if name in ds else math.nan
@@ -140,14 +131,16 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
         coll = rec.metrics.get("coll_y")
         coll_se = rec.metrics.get("coll_y_se")
         rows.append({"scene": scene, "variant": label, "paper": paper_text,
-                     **{k: rec.metrics.get(k) for k in ("cells", "index", "uy_pattern", "sense", "strength",
-                                                        "interior", "peak_ratio", "dpdx", "k_axis")},
+                     **{k: rec.metrics.get(k) for k in ("cells", "pattern_cells_sym", "pattern_index", "uy_pattern",
+                                                        "sense", "strength", "interior", "peak_ratio", "dpdx",
+                                                        "k_axis")},
                      "coll_y": (f"{coll:+.2g} ± {coll_se:.1g}" if coll is not None and math.isfinite(coll)
                                 else None),
                      "matches": _matches(rec.metrics.get("cells"), rec.metrics.get("sense"), paper_cells),
                      **_run_cells(rec)})
     columns = [Column("scene", "scene"), Column("variant", "variant"), Column("paper", "paper's pattern"),
-               Column("cells", "cells (symmetrised)", "{:d}"), Column("index", "sin2θ/cosθ index", "{:.2f}"),
+               Column("pattern_cells_sym", "cells (symmetrised; replica agreement)"),
+               Column("pattern_index", "sin2θ/cosθ index ± replicas"),
                Column("uy_pattern", "u_y signs bottom→top"), Column("sense", "main pair"),
                Column("strength", "strength [% U0]", "{:.3g}"), Column("interior", "interior max [% U0]", "{:.3g}"),
                Column("peak_ratio", "ψ upper/lower", "{:.2f}"), Column("dpdx", "-dp/dx [Pa/m]", "{:.4g}"),

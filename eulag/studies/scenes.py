@@ -12,51 +12,11 @@ from eulag.config import CASES_DIR, Case, CaseError
 
 from .report import (COLLISION_MOMENTUM_TEXT, Column, _per_run_figures, _run_cells, _run_columns,
                      _settings_text, _station, _stations_text, write_report)
-from .ablation import PAPER_PATTERN
+from .patterns import PAPER_PATTERN, PATTERN_COLUMNS, PATTERN_KEYS, pattern_columns
 from .runner import _BadInput, _finish, _quick, _select, _with_parcels, run_case
 
 SCENES_DIR = CASES_DIR / "scenes"
 SCENE_NAMES = tuple("abcdefgh")
-
-
-#: the pattern metrics of a scene row (eulag.analysis.pattern_metrics on the mirror-symmetrised
-#: section, error bars from the replicas of the final passes where the dataset has them)
-PATTERN_KEYS = ("cells_sym", "index", "uy_pattern", "sense", "interior", "coll")
-PATTERN_COLUMNS = (Column("cells_sym", "cells (symmetrised; replica agreement)"),
-                   Column("index", "sin2θ/cosθ index"), Column("uy_pattern", "u_y signs bottom→top"),
-                   Column("sense", "main pair"), Column("interior", "interior max [% U0]"),
-                   Column("coll", "collision force x, y [N]"))
-
-
-def pattern_columns(ds, x: float) -> dict:
-    """The pattern cells of a scene row: symmetrised cell count (with the fraction of the
-    replicas that agree), the sin 2θ / cos θ index and the interior solenoidal maximum (± the
-    replicas' standard error), the u_y sign pattern on the vertical diameter, the main pair's
-    rotation sense and the pipe integral of the collision force on the particles."""
-    import math
-
-    from eulag import analysis as an
-
-    m = an.pattern_metrics(ds, x)
-    reps = an.dataset_replicas(ds)
-    rm = an.replica_pattern_metrics(reps, x, template=ds) if len(reps) > 1 else None
-
-    def pm(key, fmt):
-        text = format(m[key], fmt)
-        if rm is not None and math.isfinite(rm["stderr"][key]):
-            text += " ± " + format(rm["stderr"][key], ".1g")
-        return text
-
-    cells = str(m["count_symmetrised"])
-    if rm is not None:
-        cells += f" ({rm['count_agreement'] * rm['n']:.0f}/{rm['n']} replicas)"
-    coll = None
-    if "particle_collision_force_total_x" in ds:
-        coll = ", ".join(f"{float(ds[f'particle_collision_force_total_{c}']):+.2g} ± "
-                         f"{float(ds[f'particle_collision_force_total_{c}_stderr']):.1g}" for c in "xy")
-    return {"cells_sym": cells, "index": pm("mode_index", ".2f"),
-            "uy_pattern": "".join("+" if v > 0 else "-" for v in m["uy_sign_pattern"]) or "0",
-            "sense": m["main_pair_sense"] or "-", "interior": pm("interior_solenoidal_max", ".3g"), "coll": coll}
 
 
 def scene_cases(quick: bool, names=SCENE_NAMES, parcels: int | None = None) -> list[tuple[str, Case]]:
