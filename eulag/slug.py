@@ -346,9 +346,11 @@ class _Simulation:
         with np.errstate(invalid="ignore", divide="ignore"):
             mean_v = np.stack([np.bincount(k, weights=v[:, q], minlength=nxg) for q in range(3)], axis=1) / cnt[:, None]
             dv = v - mean_v[k]
-            r["temperature"].append(np.bincount(k, weights=(dv * dv).sum(axis=1) / 3.0, minlength=nxg) / cnt)
+            # a slice without grains has no fluctuation energy and no contact force: 0, not 0/0
+            per = np.maximum(cnt, 1.0)
+            r["temperature"].append(np.bincount(k, weights=(dv * dv).sum(axis=1) / 3.0, minlength=nxg) / per)
             fc = np.linalg.norm(g.force[:n][in_tube], axis=1)
-            r["contact"].append(np.bincount(k, weights=fc, minlength=nxg) / cnt)
+            r["contact"].append(np.bincount(k, weights=fc, minlength=nxg) / per)
         # slug catalogue: runs of slices with φ < SLUG_POROSITY
         lx = grid.lx
         s = phi1 < SLUG_POROSITY
@@ -437,9 +439,9 @@ class _Simulation:
                 "wall_normal_stress": var(("time", "x"), r["wall_stress"], "Pa",
                                           "grain normal force on the tube wall per wall area, per slice (last DEM step)"),
                 "granular_temperature": var(("time", "x"), r["temperature"], "m2 s-2",
-                                            "granular temperature <|v - mean v|^2>/3 of the grains of a slice"),
+                                            "granular temperature <|v - mean v|^2>/3 of the grains of a slice (0 without grains)"),
                 "contact_force": var(("time", "x"), r["contact"], "N",
-                                     "mean magnitude of the contact force (grains and wall) per grain of a slice"),
+                                     "mean magnitude of the contact force (grains and wall) per grain of a slice (0 without grains)"),
                 "pressure_drop": var(("time",), r["dp"], "Pa", "gas pressure at the inlet minus outlet"),
                 "grains_in_tube": var(("time",), r["n_tube"], "1", "free grains with 0 <= x < L"),
                 "outflow_count": var(("time",), r["outflow"], "1", "grains left through the outlet since t = 0"),
