@@ -292,46 +292,28 @@ def _run_on_dask(client, todo, numba_threads, report):
 
 
 # ---------------------------------------------------------------------------- summary
-def _fmt(v):
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, float):
-        if math.isnan(v):
-            return ""
-        return f"{v:.4g}"
-    return str(v)
+_FLOAT_COLUMNS = ("final_residual", "pressure_gradient", "pressure_gradient_single_phase",
+                  "solids_pressure_drop_ratio", "additional_pressure_loss_coefficient", "wall_time")
 
 
 def write_summary(rows, output_dir):
-    """Write ``sweep_summary.csv`` and ``sweep_summary.md`` in ``output_dir``; returns both paths."""
+    """Write ``sweep_summary.csv`` and ``sweep_summary.md`` in ``output_dir`` (the studies' table
+    writers, :mod:`eulag.studies.report`); returns both paths."""
     from eulag.output import atomic_write
+    from eulag.studies.report import Column, markdown_table, write_csv
 
     outdir = Path(output_dir)
-    csv_path = outdir / f"{SUMMARY_STEM}.csv"
-    md_path = outdir / f"{SUMMARY_STEM}.md"
+    columns = [Column(c, _HEADERS[c], "{:.4g}" if c in _FLOAT_COLUMNS else "{}") for c in COLUMNS]
 
-    def write_csv(tmp):
-        with open(tmp, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=COLUMNS)
-            w.writeheader()
-            for r in rows:
-                w.writerow({c: ("true" if r[c] is True else "false" if r[c] is False else
-                                ("" if isinstance(r[c], float) and math.isnan(r[c]) else r[c]))
-                            for c in COLUMNS})
+    def flagged(r, yes, no):
+        c = r["converged"]
+        return {**r, "converged": yes if c is True else no if c is False else c}
 
-    def write_md(tmp):
-        n_ok = sum(1 for r in rows if r["status"] in (RAN, FINISHED_EARLIER) and r["converged"] is True)
-        lines = [f"# eulag sweep: {len(rows)} case{'' if len(rows) == 1 else 's'}, {n_ok} finished and converged", "",
-                 "| " + " | ".join(_HEADERS[c] for c in COLUMNS) + " |",
-                 "|" + "|".join("---" for _ in COLUMNS) + "|"]
-        for r in rows:
-            cells = [_fmt(r[c]).replace("|", "\\|") for c in COLUMNS]
-            lines.append("| " + " | ".join(cells) + " |")
-        with open(tmp, "w") as fh:
-            fh.write("\n".join(lines) + "\n")
-
-    atomic_write(csv_path, write_csv)
-    atomic_write(md_path, write_md)
+    csv_path = write_csv(outdir / f"{SUMMARY_STEM}.csv", columns, [flagged(r, "true", "false") for r in rows])
+    n_ok = sum(1 for r in rows if r["status"] in (RAN, FINISHED_EARLIER) and r["converged"] is True)
+    text = (f"# eulag sweep: {len(rows)} case{'' if len(rows) == 1 else 's'}, {n_ok} finished and converged\n\n"
+            + markdown_table(columns, [flagged(r, "yes", "no") for r in rows]) + "\n")
+    md_path = atomic_write(outdir / f"{SUMMARY_STEM}.md", lambda tmp: Path(tmp).write_text(text))
     return csv_path, md_path
 
 
