@@ -10,36 +10,14 @@ import pytest
 
 import eulag
 
+from .test_cli_coupled import CASE
+
 ROOT = Path(__file__).resolve().parent.parent
 
-TINY_TOML = """
-name = "tiny_api"
-[pipe]
-diameter = 0.0305
-length = 0.5
-mode = "periodic"
-sections = [0.25]
-[gas]
-density = 1.205
-viscosity = 1.81e-5
-bulk_velocity = 10.0
-inlet_k = 1.0
-[particles]
-diameter = 100e-6
-density = 1020.0
-mass_loading = 0.2
-[walls]
-roughness_angle_std_deg = 3.0
-[numerics]
-radial_cells = 8
-azimuthal_cells = 16
-parcels = 1500
-parcels_start = 1000
-max_passes = 4
-average_passes = 2
-batch_size = 200
-seed = 3
-"""
+#: the tiny periodic coupled case of the CLI tests, named, with a station and four passes
+TINY_TOML = (CASE.replace('name = "killme"', 'name = "tiny_api"')
+             .replace('mode = "periodic"', 'mode = "periodic"\nsections = [0.25]')
+             .replace("max_passes = 8", "max_passes = 4"))
 
 
 def _readme_python_block() -> str:
@@ -117,7 +95,7 @@ def test_unconverged_run_reports_the_failing_criterion(tmp_path, capsys):
 
 # ------------------------------------------------------------------ import graph
 PACKAGES = ("eulag", "rans", "particles", "collisions", "dem", "darcy", "tfm")
-#: what each package may import of the others (DESIGN.md, "Layout")
+#: what each package may import of the others (README.md, "Layout")
 ALLOWED = {
     "rans": set(),
     "collisions": set(),

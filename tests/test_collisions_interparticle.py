@@ -177,7 +177,7 @@ def test_fictitious_partner_path_is_binary_collision_with_sampled_partner(vel, w
 
 @njit
 def _direct_reference(vel, mean_own, d1, d2, mean_partner, rms, n_p, stokes, dt, n, seed, out_u2):
-    """The stochastic model written the plain way (PHYSICS.md §4.1 steps 3–4): draw ξ, form u₂,
+    """The stochastic model written the plain way (docs/physics.md steps 3–4): draw ξ, form u₂,
     collide if Y < 1 − exp(−f Δt). Returns the number of collisions; partner velocities in out_u2."""
     R = math.exp(-0.55 * stokes**0.4)
     s = math.sqrt(1.0 - R * R)
@@ -324,7 +324,7 @@ def test_frequency_probability_helpers_vs_py_func():
     for fdt in (1e-12, 1e-3, 0.5, 3.0, 50.0):
         assert ci.collision_probability(fdt, 1.0) == pytest.approx(1 - math.exp(-fdt), rel=1e-12)
         assert ci.collision_probability.py_func(fdt, 1.0) == ci.collision_probability(fdt, 1.0)
-    # <|g|> = 4σ/√π for two independent Maxwellian classes of rms σ (PHYSICS.md §7)
+    # <|g|> = 4σ/√π for two independent Maxwellian classes of rms σ (docs/physics.md)
     s = 0.7
     assert ci.mean_collision_frequency(1e-4, 1e-4, 1e10, s, s, 0.0) == pytest.approx(
         math.pi / 4 * 4e-8 * 1e10 * 4 * s / math.sqrt(math.pi), rel=1e-12)
@@ -345,7 +345,7 @@ def _impact_normals(gx, gy, gz, n, seed):
 @pytest.mark.parametrize("g", [(3.0, 0.0, 0.0), (0.0, 0.0, -2.0), (1.0, -2.0, 0.5), (1e-3, 1e-3, 1e-3)])
 def test_impact_point_uniform_on_full_disc(g):
     """L = sin Φ has pdf 2L on [0, 1] and ψ is uniform on [0, 2π) about ĝ, in any global
-    orientation (no quadrant bias, PHYSICS.md §4.1 step 5)."""
+    orientation (no quadrant bias, docs/physics.md step 5)."""
     n = 200_000
     g = np.array(g)
     gh = g / np.linalg.norm(g)

@@ -1,4 +1,4 @@
-"""Rough-wall particle–wall collision (collisions.wall), PHYSICS.md §3, §9.2, §12."""
+"""Rough-wall particle–wall collision (collisions.wall), docs/physics.md"""
 
 import math
 from functools import lru_cache
@@ -70,7 +70,7 @@ def run_kernel(kernel, pos, vel, omega, uf, r_p, R, dgamma, v_min, seed):
 @pytest.mark.parametrize("alpha,e,mu", [(0.0, 1.0, 0.4), (10.0, 0.9, 0.25), (20.0, 0.8, 0.1),
                                         (45.0, 0.8, 0.1), (5.0, 0.95, 0.325)])
 def test_coefficients_vs_seed_formula(alpha, e, mu):
-    """e_w = max(0.8, 1 − 0.01 α), μ_w = max(0.1, 0.4 − 0.015 α) (seed; PHYSICS.md §3.1)."""
+    """e_w = max(0.8, 1 − 0.01 α), μ_w = max(0.1, 0.4 − 0.015 α) (seed; docs/physics.md)."""
     for f in (cw.sommerfeld_huber_1999_restitution, cw.sommerfeld_huber_1999_restitution.py_func):
         assert f(alpha) == pytest.approx(e, abs=1e-14)
     for f in (cw.sommerfeld_huber_1999_friction, cw.sommerfeld_huber_1999_friction.py_func):
@@ -164,7 +164,7 @@ def test_rebound_restitution_slip_spin_and_energy(n, v, w, e, mu, r_p):
                                          (2.0, -1.0, -5000.0, 0.8, 0.3),
                                          (-4.0, -2.0, 8000.0, 0.7, 0.1)])
 def test_rebound_vs_2d_component_form(u, v, wz, e, mu):
-    """Wall below (n = +e_y), spin ω_z: PHYSICS.md §3.4 2-D component equations."""
+    """Wall below (n = +e_y), spin ω_z: docs/physics.md 2-D component equations."""
     Dp = 2e-4
     vel = np.array([u, v, 0.0])
     omega = np.array([0.0, 0.0, wz])
@@ -208,7 +208,7 @@ def _feff_cdf(alpha, dgamma, weighted):
 @pytest.mark.parametrize("alpha_deg", [2.0, 10.0, 45.0])
 @pytest.mark.parametrize("dgamma_deg", [1.0, 5.0, 10.0])
 def test_shadow_effect_pdf_vs_analytic_feff(alpha_deg, dgamma_deg):
-    """Histogram/KS of γ against f_eff ∝ N(γ; 0, Δγ) sin(α + γ), γ > −α (PHYSICS.md §3.2)."""
+    """Histogram/KS of γ against f_eff ∝ N(γ; 0, Δγ) sin(α + γ), γ > −α (docs/physics.md)."""
     a, dg = alpha_deg * DEG, dgamma_deg * DEG
     n = 100_000
     gam, draws = _sample_gammas(True, a, dg, n, 11)
@@ -361,7 +361,7 @@ def test_extreme_roughness_terminates_inside():
 # ---------------------------------------------------------------------------------------------
 
 def closed_form_rebound_angle(alpha_deg, e, mu):
-    """Non-rotating sphere, smooth wall: tan β from the 2-D impulse equations (PHYSICS.md §3.4).
+    """Non-rotating sphere, smooth wall: tan β from the 2-D impulse equations (docs/physics.md).
 
     u = V cos α, v = −V sin α. Non-sliding if cot α ≤ (7/2) μ (1+e): u′ = 5u/7, v′ = e V sin α;
     sliding: u′ = u − μ(1+e) V sin α.  Written out here independently of the kernel.

@@ -275,7 +275,7 @@ def _dependencies(dask_scheduler, keys):
 def test_worker_killed_with_the_last_copy_of_the_inputs_same_result(client, local_ds):
     """The worker killed mid-pass held the only replica of the scattered pass inputs: the
     unfetched super-batches are cancelled ("already forgotten"), the tracker submits them again
-    with the inputs scattered anew, and the dataset is the same (the CI failure of session 16:
+    with the inputs scattered anew, and the dataset is the same (a failure seen in CI:
     the active memory manager had dropped the other replica)."""
     killed = {}
 

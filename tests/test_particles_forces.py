@@ -1,6 +1,6 @@
-"""Force and torque correlations (particles.forces) against the published formulas, PHYSICS.md §1, §9.1, §12.
+"""Force and torque correlations (particles.forces) against the published formulas, docs/physics.md
 
-Every expected value is written out here from the paper's formula (seed eqs. 5–11, PHYSICS.md §1);
+Every expected value is written out here from the paper's formula (seed eqs. 5–11, docs/physics.md);
 nothing below calls one forces.py function to check another, except where a test says so.
 """
 
@@ -46,7 +46,7 @@ def test_drag_coefficient_published_numbers():
 
 def test_drag_branches_match_within_0p4_percent_at_1000():
     low, high = pf.schiller_naumann_drag_coefficient(1000.0), pf.schiller_naumann_drag_coefficient(1000.0 + 1e-9)
-    assert low == pytest.approx(0.4383, abs=5e-5)  # PHYSICS.md §1.1, 4 digits
+    assert low == pytest.approx(0.4383, abs=5e-5)  # docs/physics.md, 4 digits
     assert high == 0.44
     assert abs(high - low) / high < 0.004
 
@@ -171,7 +171,7 @@ def test_rotational_lift_force_vs_seed_eq8_and_rubinow_keller_1961(slip, spin):
 def test_rotational_lift_vs_oesterle_bui_dinh_1998(re_p, re_r):
     c = pf.oesterle_bui_dinh_1998_lift_coefficient(re_p, re_r)
     assert c == pytest.approx(0.45 + (re_r / re_p - 0.45) * math.exp(-0.05684 * re_r**0.4 * re_p**0.3), rel=1e-12)
-    assert 0.05684 * 4**0.4 == pytest.approx(0.09896, abs=5e-6)  # radius-based form, PHYSICS.md §1.3
+    assert 0.05684 * 4**0.4 == pytest.approx(0.09896, abs=5e-6)  # radius-based form, docs/physics.md
     re_rad = re_r / 4.0
     rad = 0.45 + (4 * re_rad / re_p - 0.45) * math.exp(-0.05684 * 4**0.4 * re_rad**0.4 * re_p**0.3)
     assert c == pytest.approx(rad, rel=1e-12)
@@ -197,7 +197,7 @@ def test_torque_stokes_limit_vs_rubinow_keller_1961(re_r):
 
 def test_torque_coefficient_continuous_at_32():
     low, high = pf.dennis_1980_torque_coefficient(32.0), pf.dennis_1980_torque_coefficient(32.0 + 1e-9)
-    assert low == pytest.approx(6.283, abs=5e-4) and high == pytest.approx(6.293, abs=5e-4)  # PHYSICS.md §1.4
+    assert low == pytest.approx(6.283, abs=5e-4) and high == pytest.approx(6.293, abs=5e-4)  # docs/physics.md
     assert abs(high - low) / low < 0.002
 
 

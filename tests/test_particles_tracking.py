@@ -227,7 +227,7 @@ def test_partners_about_the_cell_mean_need_one_correlation_per_cell():
     standard error. With R(St) taken at each particle (T_L of the log-law wall cell, ∝ y)
     it does not: 1 − R is largest where the tracers are slowest, and each collision pulls a
     tracer towards the cell mean by ~(1 − R)(ū − u₁) — the mechanism of the tracers'
-    +1.8 of their momentum inflow in the stability study (README "Coupling" 6). Measured:
+    +1.8 of their momentum inflow in the stability study (docs/history.md). Measured:
     +20.4 ± 2.3 mm/s per collision against −0.1 ± 1.9 mm/s with R per cell."""
     from particles.layout import B_PP
 

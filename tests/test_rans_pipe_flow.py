@@ -195,7 +195,7 @@ def test_non_finite_source_is_rejected_before_solving():
 
 def test_wall_shear_coefficient_is_continuous_at_the_sublayer_switch():
     """The viscous law and the log law meet at y* = 11.53 (kappa 0.41, E 9.8): no jump in tau_w
-    when k_P moves the wall cell across the switch (a 2 % jump at PHYSICS.md's 11.225 made a
+    when k_P moves the wall cell across the switch (a 2 % jump at the often quoted 11.225 made a
     wall cell cycle between the two laws and a gas station never converge)."""
     from rans import kepsilon as ke
 
@@ -319,7 +319,7 @@ def test_a_stalled_station_is_retried_with_k_eps_relaxation_and_keeps_the_fixed_
     """A station that stalls without relaxation (SIMPLEC and the coupled step) is iterated again
     with implicit k-eps relaxation 0.5 and no momentum relaxation, which keeps the fixed point:
     the march converges there to the field it gives without the stall (the near-wall
-    oscillation of scene h's final pass, README "Coupling" 5)."""
+    oscillation of scene h's final pass, docs/history.md)."""
     from rans import solver as S
 
     U = 10.0
@@ -484,7 +484,7 @@ def test_only_a_steady_contraction_counts_as_still_converging():
 
 
 def test_a_steady_contraction_after_a_bump_counts_as_still_converging():
-    """Scene g's station at x = 0.825 m (session 17): the change rose to 0.16 at iteration 142
+    """Scene g's station at x = 0.825 m (docs/history.md): the change rose to 0.16 at iteration 142
     of 200 and then fell by ~0.8, later 0.92, per iteration to 1.3e-5.  The largest change of
     the last 50 over that of the 50 before (there 6.5e-2 and 0.158: 626 more iterations; in
     this synthetic profile 7.4e-2 and 0.158: 743) projects more than the 600 left, yet at the

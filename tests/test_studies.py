@@ -216,7 +216,7 @@ def test_committed_records_belong_to_the_shipped_cases(folder):
 
 @pytest.mark.parametrize("folder", sorted(RESULT_CASES))
 def test_committed_checkpoints_resume_as_the_shipped_cases(folder):
-    """A run too long for one session is committed with its checkpoint (results/HISTORY.md), so
+    """A run too long to finish at once is committed with its checkpoint (docs/history.md), so
     that the command in results/README.md continues it on a fresh machine: each committed
     ``<run>.nc.checkpoint`` must be resumable as its shipped case (else --resume would delete
     it and start afresh), and must not sit beside a record of that case (a finished run)."""

@@ -24,8 +24,8 @@ stated in it) and its figures (PNG). Nothing in these files is edited by hand.
   ``--resume`` on another machine reports a finished run from its record when its dataset
   is not there, instead of running it again (the record names the commit that ran it, where
   the dataset recorded one). A record is trusted by its case and ``RECORD_VERSION``: a change
-  to what a study extracts from a dataset must bump the version. A run longer than a
-  session is committed with its checkpoint (``<run>.nc.checkpoint``, results/README.md), which
+  to what a study extracts from a dataset must bump the version. A run too long to finish
+  at once is committed with its checkpoint (``<run>.nc.checkpoint``, results/README.md), which
   ``--resume`` continues on any machine; the study deletes it when the run has finished.
 * ``--report``: run nothing; write the table from what an existing output folder holds
   (datasets, records, failed records; a dataset's record and figures are written again from
