@@ -29,14 +29,15 @@ from dataclasses import field as _field
 from pathlib import Path
 from typing import Any, Callable
 
-from eulag.config import CASES_DIR, Case, CaseError, packaged_cases
+from eulag.config import Case, CaseError, packaged_cases
 
 __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
-           "output_path", "finished_run", "execute", "run", "with_parcels"]
+           "output_path", "finished_run", "dataset_state", "same_case", "case_key", "checkpoint_path", "execute", "run", "with_parcels"]
 
 #: The models a case can name with its top-level ``model`` key, and the module that runs each.
 MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
 #: The dense-phase models' entry points: (module, validate(dict), run(dict, out, resume=, progress=)).
+#: Each module also defines ``same_case(attrs, dict)`` and ``checkpoint_path(out)``.
 _DENSE = {"dem-darcy": ("eulag.slug", "validate_slug_case", "run_slug"),
           "two-fluid": ("eulag.two_fluid", "validate_two_fluid_case", "run_two_fluid")}
 
@@ -175,13 +176,53 @@ def output_path(out: str | Path | None, name: str) -> Path:
     return out
 
 
-def finished_run(out: Path, case: Case) -> bool:
-    """True if ``out`` holds a converged dataset of this same case; False if there is none or
-    it ended unconverged; :class:`BadInput` if it holds another case (never overwritten by a
-    resume)."""
+def case_key(case) -> str:
+    """The identity of a case as run records store it (canonical JSON): an Euler–Lagrange
+    case by its attributes as :func:`eulag.config.comparable_attrs` compares them, a
+    dense-phase case by its TOML tables."""
+    import json
+
+    import numpy as np
+
+    from eulag.config import comparable_attrs
+
+    def default(v):
+        if isinstance(v, np.ndarray):
+            return v.tolist()
+        if isinstance(v, np.generic):
+            return v.item()
+        return str(v)
+    if isinstance(case, ModelCase):
+        return json.dumps(case.data, sort_keys=True, default=str)
+    return json.dumps(comparable_attrs(case.to_attrs()), sort_keys=True, default=default)
+
+
+def same_case(attrs: dict, case) -> bool:
+    """Whether the global attributes ``attrs`` of a dataset are those of a result of ``case``
+    (the one "same case" rule of ``--resume``, the sweep and the studies)."""
+    if isinstance(case, ModelCase):
+        return bool(getattr(_model_module(case.model), "same_case")(attrs, case.data))
+    try:
+        return Case.from_attrs(attrs) == case
+    except CaseError:
+        return False
+
+
+def checkpoint_path(out: str | Path, case=None) -> Path:
+    """The checkpoint a run of ``case`` keeps beside its output ``out``."""
+    if isinstance(case, ModelCase):
+        return getattr(_model_module(case.model), "checkpoint_path")(Path(out))
+    return Path(str(out) + ".checkpoint")
+
+
+def dataset_state(out: str | Path, case) -> str | None:
+    """What the output ``out`` holds for ``case``: None (no file), ``"converged"`` or
+    ``"unconverged"`` (a finished run of this case that ended unconverged: all its passes
+    used, running it again gives the same); :class:`BadInput` if it holds another case (never
+    overwritten by a resume), :class:`RunError` if it cannot be read."""
     out = Path(out)
     if not out.is_file():
-        return False
+        return None
     import xarray as xr
 
     from eulag.output import is_converged
@@ -192,14 +233,16 @@ def finished_run(out: Path, case: Case) -> bool:
             converged = is_converged(ds)
     except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
         raise RunError(f"--resume: {out} exists but cannot be read ({exc})") from None
-    try:
-        same = Case.from_attrs(attrs) == case
-    except CaseError:
-        same = False
-    if not same:
+    if not same_case(attrs, case):
         raise BadInput(f"--resume: {out} holds a different case; allowed: the output of this case, "
                        "or run without --resume to overwrite")
-    return converged
+    return "converged" if converged else "unconverged"
+
+
+def finished_run(out: Path, case) -> bool:
+    """True if ``out`` holds a converged dataset of this same case; False if there is none or
+    it ended unconverged; :class:`BadInput` if it holds another case (:func:`dataset_state`)."""
+    return dataset_state(out, case) == "converged"
 
 
 def _reused(case, out: Path) -> RunResult:
@@ -290,7 +333,7 @@ def _coupled(case: Case, out: Path | None, *, resume: bool, progress, notify, tr
     from eulag.output import coupled_dataset, write_dataset
 
     t_start = time.perf_counter()
-    ckpt = Path(str(out) + ".checkpoint") if out is not None else None
+    ckpt = checkpoint_path(out, case) if out is not None else None
     if ckpt is not None:
         if resume and not ckpt.exists() and finished_run(out, case):
             return _reused(case, out)
@@ -317,6 +360,8 @@ def _execute_other(case: ModelCase, out, *, resume: bool, progress) -> RunResult
     and ``stop_reason`` attributes give the verdict)."""
     _, _, runner = _DENSE[case.model]
     out = Path(out) if out is not None else None
+    if resume and out is not None and not checkpoint_path(out, case).exists() and finished_run(out, case):
+        return _reused(case, out)
     try:
         ds = getattr(_model_module(case.model), runner)(case.data, out, resume=resume, progress=progress is not None)
     except (CaseError, ValueError) as exc:

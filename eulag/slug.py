@@ -487,6 +487,21 @@ def _atomic_savez(path: Path, state: dict):
     os.replace(tmp, path)
 
 
+def checkpoint_path(out) -> Path:
+    """The checkpoint beside the output ``out``: ``<out>.checkpoint``."""
+    out = Path(out)
+    return out.with_name(out.name + ".checkpoint")
+
+
+def same_case(attrs: dict, case: dict) -> bool:
+    """Whether a dataset's attributes ``attrs`` are those of a result of ``case`` (its resolved
+    case, stored as the ``case`` attribute)."""
+    try:
+        return json.loads(attrs.get("case", "null")) == json.loads(json.dumps(validate_slug_case(case)))
+    except (ValueError, KeyError, TypeError):
+        return False
+
+
 def run_slug(case: dict, out, resume=False, progress=True):
     """Run a "dem-darcy" case; write the transient dataset to ``out`` (NetCDF; None: not written,
     no checkpoints) and return it.  Attributes ``converged`` ("true" unless grains were lost)
@@ -498,7 +513,7 @@ def run_slug(case: dict, out, resume=False, progress=True):
     """
     c = validate_slug_case(case)
     out = None if out is None else Path(out)
-    ckpt = None if out is None else out.with_name(out.name + ".checkpoint")
+    ckpt = None if out is None else checkpoint_path(out)
     sim = _Simulation(c)
     if ckpt is None:
         pass

@@ -77,7 +77,7 @@ def plan_sweep(paths, output_dir=".", parcels=None):
 
     Raises :class:`SweepInputError` (nothing run, nothing written except ``output_dir``).
     """
-    from eulag.runs import RunError, finished_run, load_case
+    from eulag.runs import RunError, dataset_state, load_case
 
     if not paths:
         raise SweepInputError("no case files given")
@@ -102,7 +102,7 @@ def plan_sweep(paths, output_dir=".", parcels=None):
         if e.output.exists() and e.output.is_dir():
             raise SweepInputError(f"{e.output}: is a directory; the output of case {e.name} must be a file")
         try:
-            e.finished = finished_run(e.output, e.case) or _ended_unconverged(e.output)
+            e.finished = dataset_state(e.output, e.case) is not None
         except RunError as exc:
             msg = str(exc).replace("--resume: ", "")
             raise SweepInputError(f"case {e.name} ({e.path}): {msg}") from None
@@ -135,17 +135,6 @@ def _checkpoint_problem(ckpt, case):
     if problem == "checkpoint of a different case":
         problem += " (another case file or --parcels)"
     return None if problem is None else f"{ckpt}: {problem}; remove it to start the case afresh"
-
-
-def _ended_unconverged(out):
-    """A dataset of the same case (checked by ``runs.finished_run`` first) that ended with
-    converged = false: its run used all its passes; running it again gives the same."""
-    if not out.is_file():
-        return False
-    import xarray as xr
-
-    with xr.open_dataset(out) as ds:
-        return not is_converged(ds)
 
 
 # ---------------------------------------------------------------------------- one case

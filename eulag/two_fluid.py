@@ -234,8 +234,27 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed):
     return ds
 
 
-def _checkpoint_path(out: Path) -> Path:
+def checkpoint_path(out: Path) -> Path:
+    """The checkpoint beside the output ``out``: ``<out>.checkpoint.npz``."""
+    out = Path(out)
     return out.with_name(out.name + ".checkpoint.npz")
+
+
+def dataset_key(case: dict) -> str:
+    """The identity of a two-fluid case's result (the dataset's ``case_json`` attribute): the
+    resolved case without ``numerics.max_iterations`` (the iteration budget does not change the
+    answer) and without ``[experiment]`` (reference data, not model input)."""
+    c = resolved_case(case)
+    same = {k: (dict(v, max_iterations=None) if k == "numerics" else v) for k, v in c.items() if k != "experiment"}
+    return json.dumps(same, sort_keys=True, default=str)
+
+
+def same_case(attrs: dict, case: dict) -> bool:
+    """Whether a dataset's attributes ``attrs`` are those of a result of ``case``."""
+    try:
+        return attrs.get("case_json") == dataset_key(case)
+    except (ValueError, KeyError, TypeError):
+        return False
 
 
 def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: bool = False):
@@ -253,9 +272,7 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
 
     validate_two_fluid_case(case)
     c = resolved_case(case)
-    # "the same case" for resume: everything but the iteration budget and the reference data
-    same = {k: (dict(v, max_iterations=None) if k == "numerics" else v) for k, v in c.items() if k != "experiment"}
-    key = json.dumps(same, sort_keys=True, default=str)
+    key = dataset_key(case)  # "the same case" for resume
     out = Path(out) if out is not None else None
     if resume and out is not None and out.is_file():
         with xr.open_dataset(out) as old:
@@ -264,7 +281,7 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
     pb = problem_from_case(case)
     solver = _Solver(pb)
     state = None
-    ck = _checkpoint_path(out) if out is not None else None
+    ck = checkpoint_path(out) if out is not None else None
     if resume and ck is not None and ck.is_file():
         with np.load(ck) as d:
             if str(d["case_json"]) == key:

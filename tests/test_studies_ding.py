@@ -91,7 +91,8 @@ def test_a_failing_run_is_one_line_and_the_study_goes_on(tmp_path, monkeypatch, 
 
     def execute(case, out=None, **kw):
         if case.name.endswith("__6x12"):
-            raise RuntimeError("two-fluid x: alpha_s = nan in cell 3 (ring 0, sector 3) at iteration 7")
+            # what the run layer raises for a failing solve (runs._execute_other)
+            raise runs.RunError("two-fluid x: alpha_s = nan in cell 3 (ring 0, sector 3) at iteration 7")
         return real(case, out, **kw)
 
     monkeypatch.setattr(runs, "execute", execute)

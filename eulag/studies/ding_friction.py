@@ -24,7 +24,7 @@ friction model changed in the case data) with the fully developed cross-section 
 Runs follow the studies' habits (:mod:`eulag.studies.runner`): one dataset ``<run>.nc`` per run
 and a run record ``<run>.record.json`` (what the table and figures take from the dataset, so
 that ``--resume`` / ``--report`` work from records alone); ``--resume`` reuses a dataset of the
-same case data, a record of the same case data and ``RECORD_VERSION``, or a failed record
+same case data, a record of the same case data and record version, or a failed record
 (``<run>.failed.json``); a failing run is one line in the table and never stops the study.
 
 ``--quick``: Q_s = 0.8 only, the three models on an 8 x 16 mesh and a grid table on 6 x 12,
@@ -34,18 +34,16 @@ same case data, a record of the same case data and ``RECORD_VERSION``, or a fail
 from __future__ import annotations
 
 import copy
-import json
 import math
 import time
 from pathlib import Path
 
 import numpy as np
 
-import eulag
 from eulag.config import CASES_DIR
 
 from .report import Column, _figure, machine_info, markdown_table, write_csv
-from .runner import EXIT_FAILURE, EXIT_OK, RunRecord, _BadInput, _from_json, _log, _to_json
+from .runner import EXIT_FAILURE, EXIT_OK, RunRecord, _BadInput, _log, run_case
 
 STUDY = "ding-friction"
 MODELS = ("dartevelle", "srivastava-sundaresan", "berzi")
@@ -58,9 +56,6 @@ GRID = (16, 32)
 GRIDS = ((16, 32), (24, 48), (32, 64))
 QUICK_GRID = (8, 16)
 QUICK_GRIDS = ((6, 12), (8, 16), (10, 20))
-#: what a record holds: bump when the extracted metrics change
-RECORD_VERSION = 2
-
 #: The paper's Table 5 (modified Berzi, Q_s = 0.8 m3/h, 3-D meshes): name, inlet cells, axial size [mm],
 #: total cells, simulated Δp [kPa]; measured 4.26 kPa.
 PAPER_TABLE5 = (("A", 180, 2.0, 216_000, 3.77), ("B", 288, 1.5, 460_800, 3.91),
@@ -155,143 +150,17 @@ def study_cases(quick: bool, models=MODELS, rates=None, sensitivity: bool | None
 
 
 # ---------------------------------------------------------------------------- running one case
-def _canonical(case) -> str:
-    return json.dumps(case.data, sort_keys=True, default=str)
-
-
-def _dataset_key(case) -> str:
-    """The ``case_json`` attribute :func:`eulag.two_fluid.run_two_fluid` writes for this case."""
-    from eulag.two_fluid import resolved_case
-
-    c = resolved_case(case.data)
-    same = {k: (dict(v, max_iterations=None) if k == "numerics" else v) for k, v in c.items() if k != "experiment"}
-    return json.dumps(same, sort_keys=True, default=str)
-
-
-def _write_json(path: Path, data: dict) -> None:
-    from eulag.output import atomic_write
-
-    text = json.dumps(_to_json(data), separators=(",", ":"), default=str)
-    atomic_write(path, lambda tmp: Path(tmp).write_text(text))
-
-
-def _read_record(path: Path, case) -> RunRecord | None:
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    if data.get("version") != RECORD_VERSION or data.get("case") != _canonical(case):
-        return None
-    return RunRecord(case.name, case, path.parent / f"{case.name}.nc", data["status"], data.get("message", ""),
-                     float(data.get("time") or math.nan), int(data.get("iterations") or 0),
-                     float(data.get("residual") if data.get("residual") is not None else math.nan),
-                     reused=True, metrics=_from_json(data.get("metrics", {})))
-
-
-def run_model_case(args, case, outdir: Path, label: str) -> RunRecord:
-    """Run (or, with ``--resume`` / ``--report``, reuse) one two-fluid case; never raises.
-
-    Reused: a dataset ``<run>.nc`` of the same case data, else a record ``<run>.record.json`` of
-    the same case data and version, else a failed record of the same case data.  A run that
-    fails is recorded in one line (``<run>.failed.json``) and the study goes on.
-    """
-    import xarray as xr
-
-    from eulag import runs
-
-    name = case.name
-    out = outdir / f"{name}.nc"
-    record = outdir / f"{name}.record.json"
-    failed = outdir / f"{name}.failed.json"
-    ckpt = out.with_name(out.name + ".checkpoint.npz")
-    report = bool(getattr(args, "report", False))
-    resume = bool(getattr(args, "resume", False)) or report
-    ds, reused = None, False
-    if resume and out.is_file():
+def _extractor(args, label: str, case):
+    """The study's metrics of a finished two-fluid dataset (:func:`extract_metrics`), for
+    :func:`eulag.studies.runner.run_case`; a metric that fails is recorded, never loses the row."""
+    def extract(ds, rec: RunRecord) -> dict:
         try:
-            with xr.open_dataset(out) as opened:
-                if opened.attrs.get("case_json") == _dataset_key(case):
-                    ds, reused = opened.load(), True
-        except Exception:  # noqa: BLE001 - unreadable: run again
-            ds = None
-        if ds is not None:
-            _log(args, f"  {label}: {out} exists (same case), not run again")
-    if ds is None and resume:
-        kept = _read_record(record, case)
-        if kept is not None:
-            _log(args, f"  {label}: reported from its record {record.name}, not run again")
-            return kept
-        try:
-            info = json.loads(failed.read_text())
-        except (OSError, ValueError):
-            info = None
-        if info and info.get("case") == _canonical(case):
-            _log(args, f"  {label}: failed before ({failed.name}), not run again: {info['message']}")
-            return RunRecord(name, case, out, info["status"], info["message"], info.get("time", math.nan),
-                             reused=True, metrics={"commit": info.get("commit")})
-    if ds is None and report:
-        if ckpt.is_file():
-            try:
-                with np.load(ckpt) as d:
-                    it = int(d["iteration"])
-                    res = float(np.asarray(d["history"])[-1, 1]) if np.asarray(d["history"]).size else math.nan
-                msg = f"checkpoint after {it} iterations (change {res:.3g}); --resume continues it"
-            except Exception:  # noqa: BLE001
-                msg = "an unreadable checkpoint"
-            _log(args, f"  {label}: unfinished: {msg}")
-            return RunRecord(name, case, out, "unfinished", msg)
-        _log(args, f"  {label}: not run (no dataset, record or checkpoint of this case here)")
-        return RunRecord(name, case, out, "not run", "no dataset, record or checkpoint of this case here")
-    if ds is None:
-        if not resume:
-            for stale in (ckpt, record):
-                stale.unlink(missing_ok=True)
-        failed.unlink(missing_ok=True)
-        n = case.data.get("numerics", {})
-        _log(args, f"  {label}: running ({n.get('radial_cells', 16)}x{n.get('azimuthal_cells', 32)} cells, "
-                   f"friction {case.data['friction']['model']})")
-        t0 = time.perf_counter()
-        kind = None
-        try:
-            ds = runs.execute(case, out, resume=resume).dataset
-        except (runs.RunError, RuntimeError, ValueError, FloatingPointError) as exc:
-            kind, msg = "failed", " ".join(str(exc).split()) or type(exc).__name__
-        except Exception as exc:  # noqa: BLE001 - recorded, the study goes on
-            kind, msg = "error", " ".join(f"{type(exc).__name__}: {exc}".split())
-        if kind is not None:
-            dt = time.perf_counter() - t0
-            out.unlink(missing_ok=True)
-            record.unlink(missing_ok=True)
-            _write_json(failed, {"case": _canonical(case), "status": kind, "message": msg, "time": dt,
-                                 "commit": eulag.git_commit()})
-            _log(args, f"  {label}: {kind}: {msg}")
-            return RunRecord(name, case, out, kind, msg, dt, metrics={"commit": eulag.git_commit()})
-    converged = ds.attrs.get("converged") == "true"
-    hist = np.asarray(ds["residual"].values, float) if "residual" in ds else np.array([math.nan])
-    rec = RunRecord(name, case, out, "converged" if converged else "not converged",
-                    "" if converged else str(ds.attrs.get("stop_reason", "")),
-                    float(ds.attrs.get("time_total", math.nan)), int(ds.attrs.get("iterations", 0)),
-                    float(hist[-1]) if hist.size else math.nan, reused=reused)
-    try:
-        rec.metrics.update(extract_metrics(ds, case))
-    except Exception as exc:  # noqa: BLE001 - a metric must not lose the row
-        rec.metrics["extract_error"] = f"{type(exc).__name__}: {exc}"
-    previous = _previous_commit(record) if reused else None
-    rec.metrics["commit"] = previous or eulag.git_commit()
-    _write_json(record, {"version": RECORD_VERSION, "case": _canonical(case), "name": name,
-                         "status": rec.status, "message": rec.message, "time": rec.time,
-                         "iterations": rec.passes, "residual": rec.residual, "dataset": out.name,
-                         "written_by": eulag.__version__, "metrics": rec.metrics})
-    _log(args, f"  {label}: {rec.status} after {rec.passes} iterations, {rec.time:.1f} s, "
-               f"Δp {rec.metrics.get('dp', math.nan) / 1e3:.3f} kPa")
-    return rec
-
-
-def _previous_commit(record: Path):
-    try:
-        return json.loads(record.read_text()).get("metrics", {}).get("commit")
-    except (OSError, ValueError):
-        return None
+            metrics = extract_metrics(ds, case)
+        except Exception as exc:  # noqa: BLE001 - a metric must not lose the row
+            metrics = {"extract_error": f"{type(exc).__name__}: {exc}"}
+        _log(args, f"  {label}: Δp {metrics.get('dp', math.nan) / 1e3:.3f} kPa")
+        return metrics
+    return extract
 
 
 # ---------------------------------------------------------------------------- metrics
@@ -397,7 +266,8 @@ def study_ding_friction(args, outdir: Path, t_start: float) -> int:
     plan = study_cases(quick, models, rates)
     records = {}
     for i, (name, (kind, info, case)) in enumerate(plan.items(), 1):
-        records[name] = run_model_case(args, case, outdir, f"[{STUDY} {i}/{len(plan)}] {name}")
+        label = f"[{STUDY} {i}/{len(plan)}] {name}"
+        records[name] = run_case(args, name, case, outdir, label, _extractor(args, label, case))
     rows = [_row(info, case, records[name]) for name, (kind, info, case) in plan.items() if kind == "matrix"]
     grid_rows = _grid_rows(plan, records)
     sens_rows = _sensitivity_rows(plan, records)

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 import eulag
-from eulag.config import CASES_DIR, Case, CaseError, comparable_attrs
+from eulag.config import CASES_DIR, Case, CaseError
 from eulag.output import is_converged
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
@@ -110,17 +110,14 @@ class RunRecord:
         return self.status in ("converged", "not converged")
 
 
-def _canonical(case: Case) -> str:
-    def default(v):
-        if isinstance(v, np.ndarray):
-            return v.tolist()
-        if isinstance(v, np.generic):
-            return v.item()
-        return str(v)
-    return json.dumps(comparable_attrs(case.to_attrs()), sort_keys=True, default=default)
+def _canonical(case) -> str:
+    """The case identity records store (:func:`eulag.runs.case_key`)."""
+    from eulag.runs import case_key
+
+    return case_key(case)
 
 
-def resumable_checkpoint(ckpt: Path, case: Case):
+def resumable_checkpoint(ckpt: Path, case):
     """(meta, residual history) of the coupling checkpoint ``ckpt`` when it is readable and
     resumable as ``case`` (``coupling.checkpoint_problem``: its stored case compared as records
     are, so one from before a key of ``config.LATER_KEYS`` counts; a changed
@@ -128,6 +125,8 @@ def resumable_checkpoint(ckpt: Path, case: Case):
     file is read once (a run beside the caller may finish and delete it)."""
     from eulag import coupling
 
+    if not isinstance(case, Case):  # a dense-phase model checks its own checkpoint when it resumes
+        return ({}, np.array([])) if ckpt.is_file() else None
     try:
         meta, residual = coupling.read_checkpoint(ckpt)
         return (meta, residual) if coupling.checkpoint_problem(meta, residual, case) is None else None
@@ -141,11 +140,10 @@ def checkpoint_of(ckpt: Path, case: Case) -> bool:
     return resumable_checkpoint(ckpt, case) is not None
 
 
-def _same_case(attrs: dict, case: Case) -> bool:
-    try:
-        return Case.from_attrs(attrs) == case
-    except CaseError:
-        return False
+def _same_case(attrs: dict, case) -> bool:
+    from eulag.runs import same_case
+
+    return same_case(attrs, case)
 
 
 def _open(path: Path):
@@ -172,7 +170,7 @@ def _warm_up(case: Case, args=None) -> None:
     """Compile the particle kernels of ``case``'s physics options with a tiny throw-away run."""
     from eulag.coupling import physics_options
 
-    if case is None or case.particles is None:
+    if not isinstance(case, Case) or case.particles is None:
         return
     key = (repr(physics_options(case)), case.pipe.mode)
     if key in _WARMED:
@@ -202,12 +200,12 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
     from eulag import runs
 
     out = outdir / f"{name}.nc"
-    ckpt = Path(str(out) + ".checkpoint")
     failed = outdir / f"{name}.failed.json"
     if isinstance(case, CaseError):
         _log(args, f"  {label}: rejected by the case validation: {case}")
         return RunRecord(name, None, out, "rejected", str(case))
 
+    ckpt = runs.checkpoint_path(out, case)
     report = bool(getattr(args, "report", False))
     resume = bool(getattr(args, "resume", False)) or report
     ds = None
@@ -218,7 +216,8 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             opened = _open(out)
         except Exception:  # noqa: BLE001 - unreadable: run again
             opened = None
-        if opened is not None and _same_case(opened.attrs, case) and "coupling_passes" in opened.attrs:
+        finished = opened is not None and ("coupling_passes" in opened.attrs or not isinstance(case, Case))
+        if finished and _same_case(opened.attrs, case):
             ds = opened
             reused = True
             _log(args, f"  {label}: {out} exists (same case), not run again")
@@ -289,6 +288,8 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
 
     rec = _record_from_dataset(name, case, out, ds)
     rec.reused = reused
+    if rec.metrics.get("commit") is None:  # a dataset that does not name its commit
+        rec.metrics["commit"] = (_recorded_commit(record) if reused else None) or eulag.git_commit()
     if extract is not None:
         rec.metrics.update(extract(ds, rec))
     write_record(record, case, rec)
@@ -299,11 +300,23 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
 RECORD_VERSION = 1
 
 
+def _recorded_commit(record: Path):
+    """The commit the run record at ``record`` names (None: no readable record)."""
+    try:
+        return json.loads(record.read_text()).get("metrics", {}).get("commit")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
 def _unfinished_record(args, name: str, case: Case, out: Path, ckpt: Path, label: str) -> RunRecord:
     """--report: the row of a run with neither dataset, record nor failed record here —
     "unfinished" with the state of its checkpoint (passes done, the last residual and α, the
     time so far), or "not run"."""
     found = resumable_checkpoint(ckpt, case)
+    if found is not None and not isinstance(case, Case):
+        msg = f"a checkpoint {ckpt.name} is here; --resume continues it"
+        _log(args, f"  {label}: unfinished: {msg}")
+        return RunRecord(name, case, out, "unfinished", msg)
     if found is not None:
         meta, residual = found
         done = int(meta.get("pass_index", 0))
@@ -383,7 +396,10 @@ def read_record(path: Path, case: Case) -> RunRecord | None:
                      num("residual"), num("relaxation"), reused=True, metrics=metrics)
 
 
-def _describe_numerics(case: Case) -> str:
+def _describe_numerics(case) -> str:
+    if not isinstance(case, Case):  # a dense-phase model: its [numerics] table as given
+        n = case.data.get("numerics", {})
+        return f"{case.model}, " + (", ".join(f"{k} {v}" for k, v in sorted(n.items())) or "default numerics")
     n = case.numerics
     grid = (f"{n.radial_cells}x{n.azimuthal_cells}" if case.pipe.mode == "periodic"
             else f"{n.axial_cells}x{n.radial_cells}x{n.azimuthal_cells}")
@@ -402,20 +418,21 @@ def run_time(ds) -> float:
     """Wall time of a run [s]: the larger of ``time_total`` and the sum of its phases (a resumed
     run's ``time_total`` covers only the resumed part; the phase times accumulate)."""
     parts = sum(_attr_float(ds, f"time_{k}", 0.0) for k in ("gas_solve", "lagrangian", "checkpoint"))
-    return max(_attr_float(ds, "time_total", 0.0), parts)
+    return max(_attr_float(ds, "time_total", 0.0), _attr_float(ds, "wall_time_s", 0.0), parts)
 
 
 def _record_from_dataset(name, case, out, ds) -> RunRecord:
     converged = is_converged(ds)
     res = np.asarray(ds["residual"].values, dtype=float) if "residual" in ds else np.array([math.nan])
     relax = np.asarray(ds["relaxation"].values, dtype=float) if "relaxation" in ds else np.array([math.nan])
-    passes = int(ds.attrs.get("coupling_passes", res.size))
+    passes = int(ds.attrs.get("coupling_passes", ds.attrs.get("iterations", res.size)))
     msg = "" if converged else (ds.attrs.get("stop_reason") or _why_not_converged(ds, case))
+    metrics = {"commit": ds.attrs.get("eulag_commit")}
+    if isinstance(case, Case):
+        metrics["collision_momentum"] = _collision_momentum(ds, case)
     return RunRecord(name, case, out, "converged" if converged else "not converged", msg, run_time(ds),
                      passes, float(res[-1]) if res.size else math.nan,
-                     float(relax[-1]) if relax.size else math.nan,
-                     metrics={"collision_momentum": _collision_momentum(ds, case),
-                              "commit": ds.attrs.get("eulag_commit")})
+                     float(relax[-1]) if relax.size else math.nan, metrics=metrics)
 
 
 def _resumed_part(ckpt: Path, history: list, hist: dict) -> tuple[float, int]:
