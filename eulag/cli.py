@@ -80,7 +80,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
     export = sub.add_parser("export", help="write a dataset's 3-D pipe as a VTK file for ParaView")
     export.add_argument("dataset", metavar="OUT.nc", help="dataset written by 'eulag run'")
-    export.add_argument("target", metavar="OUT.vts", help="VTK file to write")
+    export.add_argument("target", metavar="OUT.vts", help="VTK file to write: .vts (structured grid; needs "
+                        "the extra eulag[vtk]) or .vtu (unstructured grid)")
     export.set_defaults(func=cmd_export)
 
     plot = sub.add_parser("plot", help="figures (PNG) from a dataset: section, profiles, convergence")
@@ -440,7 +441,8 @@ def cmd_cases(args) -> int:
 
 
 def cmd_export(args) -> int:
-    """A dataset's cell fields on the 3-D pipe as a VTK unstructured grid (.vtu; eulag.export)."""
+    """A dataset's cell fields on the 3-D pipe as a VTK structured (.vts) or unstructured (.vtu)
+    grid (eulag.export)."""
     from eulag import export
 
     src = Path(args.dataset)

@@ -29,19 +29,25 @@ axial, ring and sector index (threshold on them to pick a station, ring or secto
 Variables on (x, theta) (wall fields) or (x,) (per-station numbers) are not cell fields and
 are not exported.
 
-Format: VTK XML *unstructured* grid (.vtu), written with meshio. meshio (>= 5.3; pure Python,
-a 0.2 MB wheel) writes no structured grid (.vts): its VTK writers are the legacy .vtk and
-the XML .vtu. The structured-grid writer would have been pyvista, whose VTK dependency is a
-140 MB wheel (vtk 9.7.2, CPython 3.11, 565 MB installed) that every fresh environment of
-this package would download for one export. The unstructured grid costs the connectivity
-(about 75 bytes per cell before compression) and gives in exchange the closed seam with
-shared points and proper wedges at the axis, where a structured grid has a duplicated seam
-column and degenerate hexahedra. ParaView and VTK read .vtu natively.
+Formats, chosen by the target's suffix:
 
-Because a VTK reader chooses its format by the file suffix, the file is always written with
-the suffix ``.vtu``: a target named ``OUT.vts`` (the structured-grid suffix) is written as
-``OUT.vtu``, and :func:`export_vts` returns the path it wrote. ``OUT.vtu`` is written as
-named; any other suffix is an error.
+* ``.vts``: VTK XML *structured* grid, written with VTK's own Python package (``vtk``, Kitware;
+  the optional extra ``eulag[vtk]``; only its data-model and XML-writer modules are loaded, no
+  rendering library). The grid's index directions are (x, theta, r), a right-handed order in
+  this frame, so that every cell has a positive volume: points are the (nx + 1) x (nt + 1) x
+  (nr + 1) corners, x fastest, then theta, then r; cells in the same order (cell (i, j, k) of
+  the dataset is number i + nx (k + nt j)). The theta
+  seam is closed geometrically: the last column of points (theta = 2 pi) holds exactly the
+  coordinates of the first, so the sectors k = nt - 1 and k = 0 touch without a gap (a
+  structured grid cannot share the point ids; ParaView's "Merge Points" joins them). The
+  ring-0 cells are hexahedra whose four inner corners lie on the axis (degenerate: they have
+  the wedge's volume).
+* ``.vtu``: VTK XML *unstructured* grid, written with meshio (pure Python, a dependency):
+  ring 0 as wedges (VTK_WEDGE) around one shared axis point per axial face, rings 1.. as
+  hexahedra, the seam closed by shared points. Cells: the wedges of ring 0 first, then the
+  hexahedra, each block in (x, r, theta) C order.
+
+The file appears complete or not at all (written beside the target, then renamed).
 """
 
 from __future__ import annotations
@@ -64,15 +70,59 @@ class ExportError(ValueError):
 
 
 def export_path(vts_path: str | os.PathLike) -> Path:
-    """The file :func:`export_vts` writes for the target ``vts_path``: ``.vts`` becomes ``.vtu``."""
+    """The file :func:`export_vts` writes for the target ``vts_path`` (checked: ``.vts`` or ``.vtu``)."""
     path = Path(vts_path)
-    suffix = path.suffix.lower()
-    if suffix == ".vts":
-        return path.with_suffix(".vtu")
-    if suffix == ".vtu":
+    if path.suffix.lower() in (".vts", ".vtu"):
         return path
-    raise ExportError(f"{path}: unknown suffix {path.suffix or '(none)'!r}; allowed: .vtu, or .vts "
-                      "(written as .vtu: a VTK unstructured grid)")
+    raise ExportError(f"{path}: unknown suffix {path.suffix or '(none)'!r}; allowed: .vts (VTK structured "
+                      "grid) or .vtu (VTK unstructured grid)")
+
+
+def _vtk_modules():
+    """VTK's data-model and XML-IO modules (the optional extra ``eulag[vtk]``)."""
+    try:
+        from vtkmodules.util.numpy_support import numpy_to_vtk
+        from vtkmodules.vtkCommonCore import vtkPoints
+        from vtkmodules.vtkCommonDataModel import vtkStructuredGrid
+        from vtkmodules.vtkIOXML import vtkXMLStructuredGridWriter
+    except ImportError:
+        raise ExportError("a .vts file is written with VTK's Python package, which is not installed; "
+                          "allowed: pip install 'eulag[vtk]', or a .vtu target (meshio)") from None
+    return numpy_to_vtk, vtkPoints, vtkStructuredGrid, vtkXMLStructuredGridWriter
+
+
+def _write_structured(out: Path, x_edge, r_edge, theta_edge, cell_data: dict) -> None:
+    """The .vts file: corner points x fastest, then theta, then r; the seam's last column a copy
+    of the first; ``cell_data`` {name: array (nx, nr, nt[, 3])}."""
+    from eulag.output import atomic_write
+
+    numpy_to_vtk, vtkPoints, vtkStructuredGrid, vtkXMLStructuredGridWriter = _vtk_modules()
+    nx, nr, nt = x_edge.size - 1, r_edge.size - 1, theta_edge.size - 1
+    th = np.append(theta_edge[:nt], theta_edge[0])  # closed seam: the same coordinates at 2 pi
+    X, R, T = np.meshgrid(x_edge, r_edge, th, indexing="ij")
+    pts = np.stack([X, R * np.sin(T), R * np.cos(T)], axis=-1)  # x axial, y up, z horizontal
+    pts = np.ascontiguousarray(pts.transpose(1, 2, 0, 3).reshape(-1, 3))  # (r, theta, x): x fastest
+    grid = vtkStructuredGrid()
+    grid.SetDimensions(nx + 1, nt + 1, nr + 1)
+    points = vtkPoints()
+    points.SetData(numpy_to_vtk(pts, deep=True))
+    grid.SetPoints(points)
+    for name, values in cell_data.items():
+        v = np.asarray(values)
+        flat = v.transpose(1, 2, 0, *range(3, v.ndim)).reshape(nx * nr * nt, *v.shape[3:])
+        arr = numpy_to_vtk(np.ascontiguousarray(flat), deep=True)
+        arr.SetName(name)
+        grid.GetCellData().AddArray(arr)
+
+    def write(tmp):
+        w = vtkXMLStructuredGridWriter()
+        w.SetFileName(str(tmp))
+        w.SetInputData(grid)
+        w.SetDataModeToBinary()
+        w.SetCompressorTypeToZLib()
+        if not w.Write():
+            raise ExportError(f"{out}: VTK could not write the file")
+    atomic_write(out, write)
 
 
 def _points_and_cells(x_edge, r_edge, theta_edge):
@@ -156,31 +206,28 @@ def _vector_triplets(names) -> dict[str, tuple[str, str, str]]:
 
 
 def export_vts(dataset_path: str | os.PathLike, vts_path: str | os.PathLike) -> Path:
-    """Write the 3-D pipe of the result ``dataset_path`` as a VTK unstructured grid.
+    """Write the 3-D pipe of the result ``dataset_path`` as a VTK file (.vts or .vtu).
 
     Parameters
     ----------
     dataset_path : path
         A result NetCDF of eulag (:mod:`eulag.output`).
     vts_path : path
-        The target, ending in ``.vtu`` or ``.vts``; ``.vts`` is written as ``.vtu`` (see the
-        module docstring). The file appears complete or not at all (written beside it and
-        renamed).
+        The target: ``.vts`` (structured grid, VTK) or ``.vtu`` (unstructured grid, meshio);
+        see the module docstring. The file appears complete or not at all.
 
     Returns
     -------
     Path
         The file written.
 
-    Cells: nx * nr * nt (the wedges of ring 0 first, then the hexahedra of rings 1..nr-1,
-    each block in (x, r, theta) C order); cell data as listed in the module docstring.
+    Cells: nx * nr * nt, in the order of the module docstring; cell data as listed there.
     """
-    import meshio
     import xarray as xr
 
-    from eulag.output import atomic_write
-
     out = export_path(vts_path)
+    if out.suffix.lower() == ".vts":
+        _vtk_modules()  # the optional library is there before any work
     if not Path(dataset_path).is_file():
         raise ExportError(f"{dataset_path}: no such dataset")
     try:
@@ -206,6 +253,26 @@ def export_vts(dataset_path: str | os.PathLike, vts_path: str | os.PathLike) -> 
             if set(var.dims) == set(_CELL_DIMS) and var.ndim == 3 and var.dtype.kind in "fiu":
                 fields[name] = np.asarray(var.transpose(*_CELL_DIMS).values, dtype=np.float64)
 
+    cell_fields = dict(fields)
+    for vec, comps in _vector_triplets(fields).items():
+        cell_fields[vec] = np.stack([fields[c] for c in comps], axis=-1)
+    for label, a in zip(("cell_i", "cell_j", "cell_k"), np.indices((nx, nr, nt), dtype=np.int32)):
+        cell_fields[label] = a
+    if out.suffix.lower() == ".vts":
+        _write_structured(out, x_edge, r_edge, theta_edge, cell_fields)
+        return out
+    _write_unstructured(out, x_edge, r_edge, theta_edge, cell_fields)
+    return out
+
+
+def _write_unstructured(out: Path, x_edge, r_edge, theta_edge, cell_fields: dict) -> None:
+    """The .vtu file (meshio): ring 0 as wedges, then the hexahedra; ``cell_fields`` {name:
+    array (nx, nr, nt[, 3])}."""
+    import meshio
+
+    from eulag.output import atomic_write
+
+    nr = r_edge.size - 1
     points, wedges, hexes = _points_and_cells(x_edge, r_edge, theta_edge)
     cells = [("wedge", wedges)]
     if hexes.size:
@@ -218,15 +285,7 @@ def export_vts(dataset_path: str | os.PathLike, vts_path: str | os.PathLike) -> 
             parts.append(values[:, 1:, :].reshape(-1, *values.shape[3:]))
         return parts
 
-    cell_data = {name: blocks(v) for name, v in fields.items()}
-    for vec, comps in _vector_triplets(fields).items():
-        cell_data[vec] = blocks(np.stack([fields[c] for c in comps], axis=-1))
-    idx = np.indices((nx, nr, nt), dtype=np.int32)
-    for label, a in zip(("cell_i", "cell_j", "cell_k"), idx):
-        cell_data[label] = blocks(a)
-
+    cell_data = {name: blocks(v) for name, v in cell_fields.items()}
     mesh = meshio.Mesh(points, cells, cell_data=cell_data)
-
     atomic_write(out, lambda tmp: meshio.write(tmp, mesh, file_format="vtu", binary=True,
                                                compression="zlib"))
-    return out

@@ -1,6 +1,8 @@
-"""eulag.export: a tiny result dataset exported and read back with meshio: cell count, cell
-types, every cell field and the gas velocity vector in (x, r, theta) order, each cell where the
-dataset puts it, the theta seam closed (shared points), VTK's cell orientation."""
+"""eulag.export: a tiny result dataset exported and read back — the .vtu with meshio (cell
+count, cell types, every cell field and the gas velocity vector in (x, r, theta) order, each cell
+where the dataset puts it, the theta seam closed by shared points, VTK's cell orientation), the
+.vts with VTK's own XML reader (dimensions, cell count, cell fields in VTK's i-fastest order, the
+seam's last point column on the first, cell volumes of the polygonal pipe)."""
 
 import dataclasses
 
@@ -36,11 +38,11 @@ def exported(tmp_path_factory):
     ds = gas_dataset(case, mesh, field)
     nc = tmp / "tiny.nc"
     write_dataset(ds, nc)
-    written = export_vts(nc, tmp / "tiny.vts")
+    written = export_vts(nc, tmp / "tiny.vtu")
     return mesh, field, written, meshio.read(written)
 
 
-def test_vts_target_is_written_as_vtu_and_reads_back_with_the_cell_count(exported):
+def test_vtu_reads_back_with_the_cell_count(exported):
     mesh, _, written, grid = exported
     assert written.name == "tiny.vtu" and written.is_file()
     assert sum(len(block.data) for block in grid.cells) == NX * NR * NT
@@ -115,7 +117,7 @@ def test_seam_is_closed_and_cells_are_oriented_as_vtk_wants(exported):
 
 
 def test_target_suffixes(tmp_path):
-    assert export_path(tmp_path / "a.vts") == tmp_path / "a.vtu"
+    assert export_path(tmp_path / "a.vts") == tmp_path / "a.vts"
     assert export_path(tmp_path / "a.vtu") == tmp_path / "a.vtu"
     with pytest.raises(ExportError, match="suffix"):
         export_path(tmp_path / "a.vtk")
@@ -140,3 +142,71 @@ def test_cf_bounds_instead_of_edges(exported, tmp_path):
     again = meshio.read(export_vts(nc, tmp_path / "bounds.vtu"))
     np.testing.assert_array_equal(again.points, grid.points)
     np.testing.assert_array_equal(_cells(again, "gas_ux"), field.ux)
+
+
+def _read_vts(path):
+    pytest.importorskip("vtkmodules")
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLStructuredGridReader
+
+    reader = vtkXMLStructuredGridReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    grid = reader.GetOutput()
+    cd = grid.GetCellData()
+    arrays = {cd.GetArrayName(n): vtk_to_numpy(cd.GetArray(n)) for n in range(cd.GetNumberOfArrays())}
+    return grid, vtk_to_numpy(grid.GetPoints().GetData()), arrays
+
+
+def test_vts_structured_grid_reads_back(exported, tmp_path):
+    mesh, field, written, _ = exported
+    target = export_vts(written.with_suffix(".nc"), tmp_path / "tiny.vts")
+    assert target == tmp_path / "tiny.vts" and target.is_file()
+    grid, points, arrays = _read_vts(target)
+    dims = [0, 0, 0]
+    grid.GetDimensions(dims)
+    assert tuple(dims) == (NX + 1, NT + 1, NR + 1)
+    assert grid.GetNumberOfCells() == NX * NR * NT
+    # cell (i, j, k) is number i + NX (k + NT j): back to (x, r, theta) by a transpose
+    back = lambda a: a.reshape((NR, NT, NX) + a.shape[1:]).transpose(2, 0, 1, *range(3, a.ndim + 2))  # noqa: E731
+    np.testing.assert_array_equal(back(arrays["gas_ux"]), field.ux)
+    np.testing.assert_array_equal(back(arrays["gas_k"]), field.k)
+    np.testing.assert_array_equal(back(arrays["gas_u"]), np.stack([field.ux, field.uy, field.uz], axis=-1))
+    for c, name in enumerate(("cell_i", "cell_j", "cell_k")):
+        np.testing.assert_array_equal(back(arrays[name]), np.indices((NX, NR, NT))[c])
+    pts = points.reshape(NR + 1, NT + 1, NX + 1, 3)
+    np.testing.assert_array_equal(pts[:, NT], pts[:, 0])  # the seam closed: theta = 2 pi on theta = 0
+    np.testing.assert_allclose(pts[:, 0, 0, 2], mesh.r_edges)  # theta = 0: along +z
+    np.testing.assert_allclose(pts[0, :, :, 1:], 0.0)  # ring 0's inner corners on the axis
+    np.testing.assert_allclose(pts[0, 0, :, 0], mesh.x_edges)
+    # VTK's own cell volumes: the polygonal pipe, (sin(dth)/dth) of the exact annular sectors
+    from vtkmodules.vtkFiltersVerdict import vtkCellSizeFilter
+
+    sizes = vtkCellSizeFilter()
+    sizes.SetInputData(grid)
+    sizes.Update()
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    vols = vtk_to_numpy(sizes.GetOutput().GetCellData().GetArray("Volume"))
+    assert np.all(vols > 0)  # right-handed cells
+    vol = vols.sum()
+    dth = 2 * np.pi / NT
+    exact = np.pi * (0.0305 / 2) ** 2 * 0.12
+    assert vol == pytest.approx(exact * np.sin(dth) / dth, rel=1e-9)
+
+
+def test_vts_without_vtk_is_one_clear_error(exported, tmp_path, monkeypatch):
+    import builtins
+
+    real = builtins.__import__
+
+    def no_vtk(name, *args, **kwargs):
+        if name.startswith("vtkmodules"):
+            raise ImportError(name)
+        return real(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_vtk)
+    _, _, written, _ = exported
+    with pytest.raises(ExportError, match=r"eulag\[vtk\]"):
+        export_vts(written.with_suffix(".nc"), tmp_path / "x.vts")
+    assert not (tmp_path / "x.vts").exists()
