@@ -32,7 +32,7 @@ from typing import Any, Callable
 from eulag.config import Case, CaseError, packaged_cases
 
 __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
-           "output_path", "finished_run", "dataset_state", "same_case", "case_key", "checkpoint_path", "execute", "run", "with_parcels"]
+           "output_path", "finished_run", "dataset_state", "same_case", "case_key", "checkpoint_path", "checkpoint_state", "execute", "run", "with_parcels"]
 
 #: The models a case can name with its top-level ``model`` key, and the module that runs each.
 MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
@@ -213,6 +213,35 @@ def checkpoint_path(out: str | Path, case=None) -> Path:
     if isinstance(case, ModelCase):
         return getattr(_model_module(case.model), "checkpoint_path")(Path(out))
     return Path(str(out) + ".checkpoint")
+
+
+def checkpoint_state(ckpt: str | Path, case):
+    """The checkpoint ``ckpt`` of a coupled run as ``case`` would resume it: ``(meta, residual
+    history, None)`` when it can (``coupling.checkpoint_problem``: its stored case compared as
+    records are), ``(None, None, why)`` when it cannot (unreadable, another case, ...), and None
+    when there is no such file.  A dense-phase model checks its own checkpoint when it resumes:
+    ``({}, empty, None)``.  The file is read once (a run beside the caller may finish and delete
+    it)."""
+    import numpy as np
+
+    ckpt = Path(ckpt)
+    if not ckpt.is_file():
+        return None
+    if isinstance(case, ModelCase):
+        return {}, np.zeros(0), None
+    from eulag import coupling
+
+    try:
+        meta, residual = coupling.read_checkpoint(ckpt)
+    except coupling.CouplingError as exc:
+        return None, None, str(exc)
+    except OSError as exc:  # deleted or unreadable meanwhile
+        return None, None, f"{ckpt}: cannot be read ({exc})"
+    try:
+        problem = coupling.checkpoint_problem(meta, residual, case)
+    except Exception as exc:  # noqa: BLE001 - a foreign file: not of this case
+        problem = f"not a checkpoint of this case ({type(exc).__name__})"
+    return (meta, residual, None) if problem is None else (None, None, problem)
 
 
 def dataset_state(out: str | Path, case) -> str | None:

@@ -119,22 +119,17 @@ def plan_sweep(paths, output_dir=".", parcels=None):
 
 def _checkpoint_problem(ckpt, case):
     """Why the checkpoint beside a case's output cannot be resumed by this case (None: it can,
-    or there is none).  The same checks as CouplingLoop's resume, on the metadata only."""
-    if not ckpt.is_file():
-        return None
-    from eulag import coupling
+    or there is none): :func:`eulag.runs.checkpoint_state`."""
+    from eulag.runs import checkpoint_state
 
-    try:
-        meta, residual = coupling.read_checkpoint(ckpt)
-    except coupling.CouplingError as exc:
-        return f"{exc}; remove it to start the case afresh"
-    try:
-        problem = coupling.checkpoint_problem(meta, residual, case)
-    except Exception:  # noqa: BLE001 - leave the verdict to the run itself
+    state = checkpoint_state(ckpt, case)
+    if state is None or state[2] is None:
         return None
+    problem = state[2]
     if problem == "checkpoint of a different case":
         problem += " (another case file or --parcels)"
-    return None if problem is None else f"{ckpt}: {problem}; remove it to start the case afresh"
+    prefix = "" if problem.startswith(str(ckpt)) else f"{ckpt}: "
+    return f"{prefix}{problem}; remove it to start the case afresh"
 
 
 # ---------------------------------------------------------------------------- one case

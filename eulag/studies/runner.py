@@ -118,20 +118,12 @@ def _canonical(case) -> str:
 
 
 def resumable_checkpoint(ckpt: Path, case):
-    """(meta, residual history) of the coupling checkpoint ``ckpt`` when it is readable and
-    resumable as ``case`` (``coupling.checkpoint_problem``: its stored case compared as records
-    are, so one from before a key of ``config.LATER_KEYS`` counts; a changed
-    ``numerics.max_passes`` only where the passes done do not depend on it), else None.  The
-    file is read once (a run beside the caller may finish and delete it)."""
-    from eulag import coupling
+    """(meta, residual history) of the checkpoint ``ckpt`` when it is readable and resumable
+    as ``case`` (:func:`eulag.runs.checkpoint_state`), else None."""
+    from eulag.runs import checkpoint_state
 
-    if not isinstance(case, Case):  # a dense-phase model checks its own checkpoint when it resumes
-        return ({}, np.array([])) if ckpt.is_file() else None
-    try:
-        meta, residual = coupling.read_checkpoint(ckpt)
-        return (meta, residual) if coupling.checkpoint_problem(meta, residual, case) is None else None
-    except Exception:  # noqa: BLE001 - absent, unreadable or foreign: not of this case
-        return None
+    state = checkpoint_state(ckpt, case)
+    return None if state is None or state[2] is not None else state[:2]
 
 
 def checkpoint_of(ckpt: Path, case: Case) -> bool:
