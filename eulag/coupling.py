@@ -539,6 +539,10 @@ class CouplingLoop:
         # referred to) and epsilon (C_eps3 (eps/k) S_k as applied in the last gas solve: output only)
         self.sources = None
         self.stats = None
+        # per cell: sum and count of the number densities of the collisional passes' statistics
+        # (the reference mass of the returned partner momentum's integral control)
+        self.stats_n_sum = None
+        self.stats_n_count = None
         self.window = None  # running sums (total, var, cov) of the final passes' samples
         self.window_n = 0
         self.window_batches = 0
@@ -607,9 +611,21 @@ class CouplingLoop:
         # the first pass runs without inter-particle collisions (no statistics yet): its
         # statistics only start the second pass, and the first collisional pass's replace them
         # rather than being blended with them (they belong to another model)
+        from particles.layout import CS_N, CS_OK
+
         if self.stats is None or not self.two_way or self.pass_index <= 2:
+            self.stats_n_sum = np.where(new[:, CS_OK] > 0, new[:, CS_N], 0.0)
+            self.stats_n_count = (new[:, CS_OK] > 0).astype(float)
             return new
-        return _relax_statistics(self.stats, new, self.statistics_weight())
+        if self.stats_n_sum is None:  # resumed from a checkpoint without them: start from the statistics
+            self.stats_n_sum = np.where(self.stats[:, CS_OK] > 0, self.stats[:, CS_N], 0.0)
+            self.stats_n_count = (self.stats[:, CS_OK] > 0).astype(float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            n_ref = np.where(self.stats_n_count > 0, self.stats_n_sum / self.stats_n_count, np.nan)
+        ok = new[:, CS_OK] > 0
+        self.stats_n_sum = self.stats_n_sum + np.where(ok, new[:, CS_N], 0.0)
+        self.stats_n_count = self.stats_n_count + ok
+        return _relax_statistics(self.stats, new, self.statistics_weight(), n_ref)
 
     def _gas_sources(self, s):
         # S_eps = C_eps3 (eps/k) S_k is evaluated in the solve with the iterate's eps/k
@@ -952,6 +968,8 @@ class CouplingLoop:
                 arrays[f"src_{k}"] = v
         if self.stats is not None:
             arrays["stats"] = self.stats
+        if self.stats_n_sum is not None:
+            arrays["stats_n_sum"], arrays["stats_n_count"] = self.stats_n_sum, self.stats_n_count
         if self.window is not None:
             for i, v in enumerate(self.window):
                 arrays[f"window_{i}"] = v
@@ -994,6 +1012,7 @@ class CouplingLoop:
         if "src_momentum" in data:
             self.sources = {k[4:]: data[k] for k in data if k.startswith("src_")}
         self.stats = data.get("stats")
+        self.stats_n_sum, self.stats_n_count = data.get("stats_n_sum"), data.get("stats_n_count")
         if self.stats is not None:
             if self.stats.shape[1] == CS_ST:  # a checkpoint from before the Stokes-number column
                 st = particles.cell_stokes(self.stats, self.gas, self.spec)
@@ -1052,7 +1071,7 @@ class CouplingLoop:
                              face_flux=data.get(f"{tag}_face_flux"), **kw)
 
 
-def _relax_statistics(old, new, alpha):
+def _relax_statistics(old, new, alpha, n_ref=None):
     """Collision statistics blended like the sources: (1 − α) old + α new per cell, the rms
     columns through their variances; a cell sampled in only one of them keeps that one's row.
     The collision frequency is blended linearly (it is close to linear in n and σ).
@@ -1061,7 +1080,7 @@ def _relax_statistics(old, new, alpha):
     they approach the particles' own by only 1/(1 + f τ_p) of the gap per pass, blending at α
     slowed that further while the partners drawn about stale means inject momentum, but taken
     unblended they joined the dense/sparse alternation of 50 µm scene e."""
-    from particles.layout import CS_OK, CS_RMS, CS_U, CS_WM, CS_WRMS
+    from particles.layout import CS_APP, CS_N, CS_OK, CS_RMS, CS_U, CS_WM, CS_WRMS
 
     both = (old[:, CS_OK] > 0) & (new[:, CS_OK] > 0)
     out = np.where((new[:, CS_OK] > 0)[:, None], new, old)
@@ -1072,6 +1091,22 @@ def _relax_statistics(old, new, alpha):
     w = max(alpha, STATISTICS_MEAN_WEIGHT)
     for c0 in (CS_U, CS_WM):
         blend[:, c0:c0 + 3] = (1.0 - w) * old[both, c0:c0 + 3] + w * new[both, c0:c0 + 3]
+    if new.shape[1] > CS_APP:
+        # The returned partner momentum a (physics.partner_momentum = "returned") as an integral
+        # controller on the cell's net collision force: the pass ran with a_old and left the net
+        # force F_net = W (a_old − a_new) (a_new = −F_jump/W of that pass, W its particle mass in
+        # the cell); a moves by −α F_net / W_ref, W_ref the mean mass of the earlier passes
+        # (n_ref, the mean of their number densities; the relaxed one where it is not given), so
+        # a only stops drifting where the net force vanishes in the mean.  The plain blend
+        # (1 − α) a_old + α a_new divides by each pass's own W instead and settles where the mean
+        # of F/W vanishes, which leaves a net force wherever a cell's mass and its collision rate
+        # per unit mass fluctuate together from pass to pass; a reference that moves with the
+        # recent passes (the relaxed number density) leaves a smaller one of the same kind.  The
+        # gain is at most 1 (a pass never moves a beyond its own a_new).
+        sl = slice(CS_APP, CS_APP + 3)
+        ref = old[both, CS_N] if n_ref is None else np.where(n_ref[both] > 0, n_ref[both], old[both, CS_N])
+        gain = np.minimum(alpha * new[both, CS_N] / ref, 1.0)
+        blend[:, sl] = old[both, sl] + gain[:, None] * (new[both, sl] - old[both, sl])
     blend[:, CS_OK] = 1.0
     out[both] = blend
     return out

@@ -186,3 +186,52 @@ def _uniform_passes(mode, passes, parcels=3000):
         new = s.cell_statistics(gas)
         stats = new if p == 1 else _relax_statistics(stats, new, 0.3)
     return out
+
+
+def _toy_passes(relax, passes=20000, alpha=0.3, seed=3):
+    """A cell whose mass W and collision jump per unit mass r = F_jump/W change together from
+    pass to pass (dense passes collide less per unit mass than sparse ones): W = 2, r = -1 or
+    W = 0.5, r = -3, each with probability 1/2.  Each pass runs with the returned acceleration
+    a of the statistics and leaves the net force F_net = W (r + a); the statistics of the pass
+    carry a_new = -r.  ``relax(new, alpha)`` gives the next statistics.  Mean F_net after the
+    first 100 passes."""
+    from particles.layout import CS_APP, CS_N, CS_OK, NCS
+
+    rng = np.random.default_rng(seed)
+    a, nets = 0.0, []
+    for n in range(passes):
+        w, r = (2.0, -1.0) if rng.random() < 0.5 else (0.5, -3.0)
+        nets.append(w * (r + a))
+        new = np.zeros((1, NCS))
+        new[0, CS_N], new[0, CS_OK], new[0, CS_APP] = w, 1.0, -r
+        a = relax(new, alpha)[0, CS_APP]
+    return float(np.mean(nets[100:]))
+
+
+def test_the_returned_acceleration_drives_the_mean_net_force_to_zero():
+    """The coupling loop's relaxation of the returned acceleration is an integral controller on
+    the net collision force (eulag.coupling: CouplingLoop._next_statistics, _relax_statistics):
+    with the cell's mass and its jump rate per unit mass fluctuating together, the mean net
+    force still vanishes.  The plain blend of a_new = -F_jump/W (the comparison) settles where
+    the mean of r + a vanishes, a = 2, and leaves the net force (2 (2 - 1) + 0.5 (2 - 3)) / 2 =
+    0.75 per pass."""
+    from types import SimpleNamespace
+
+    from eulag.coupling import CouplingLoop
+
+    def plain(new, alpha, state={}):  # noqa: B006 - the toy's statistics between passes
+        old = state.get("stats")
+        out = new.copy() if old is None else (1 - alpha) * old + alpha * new
+        state["stats"] = out
+        return out
+
+    loop = SimpleNamespace(stats=None, two_way=True, pass_index=0, stats_n_sum=None, stats_n_count=None,
+                           statistics_weight=lambda: 0.3)
+
+    def controlled(new, alpha):
+        loop.pass_index += 1
+        loop.stats = CouplingLoop._next_statistics(loop, new)
+        return loop.stats
+
+    assert _toy_passes(plain) == pytest.approx(0.75, abs=0.03)
+    assert abs(_toy_passes(controlled)) < 0.01
