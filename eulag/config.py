@@ -498,10 +498,11 @@ class PhysicsConfig(_Section):
         ``"discarded"`` (default; Sommerfeld 2001, only the real particle is updated, so the
         collisions conserve momentum only while the partners' Gaussian law matches the cell's
         particles, which rebounds from a rough wall skew) or ``"returned"`` (the cell's
-        particles receive the acceleration -F/c of the previous passes' statistics, F the net
-        force of the collision jumps per volume and c the particle concentration, spread over
-        their residence time, so the net collision force per cell vanishes in the mean at the
-        coupled steady state; ``particles.PhysicsOptions``).
+        particles receive an acceleration a spread over their residence time; the coupling
+        loop adjusts a from pass to pass by -alpha F_net / W_ref, F_net the cell's net
+        collision force and W_ref its mean particle mass over the earlier passes, so the net
+        collision force per cell vanishes in the mean at the coupled steady state;
+        ``particles.PhysicsOptions``, ``eulag.coupling``).
     """
 
     section: ClassVar[str] = "physics"
