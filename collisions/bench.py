@@ -7,7 +7,7 @@ step kernel will call it (inputs reset per call from pre-generated arrays, so th
 copy is included).  The first call of every driver (JIT compile of the driver and
 compile-or-cache-load of the kernel) is timed and reported apart; the warm figure is
 the best of three repeats.  A stand-in particle step (exponential drag update +
-three Philox normals for a Langevin model, no interpolation) gives a lower bound on
+three Philox normals (ziggurat) for a Langevin model, no interpolation) gives a lower bound on
 the cost of the real step, for scale.  Each benchmark also checks a physical property
 (particles inside the pipe; collision fraction close to the kinetic-theory mean
 probability, which ignores the curvature of 1 − exp(−fΔt) — exact only for small P).

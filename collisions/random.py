@@ -23,8 +23,12 @@ Key layout (64-bit key, 128-bit counter, four 32-bit words):
     counter3 = pass                               (0 <= pass < 2**32)
 
 Each draw (one counter value) yields one uniform double, or one standard
-normal, or a pair of independent standard normals (Box–Muller on the two
-64-bit halves of the block).
+normal, or a pair of independent standard normals (one per 64-bit half of the
+block, by the 256-layer ziggurat of Marsaglia & Tsang 2000 in the 64-bit form
+numpy uses).  The ziggurat is a rejection method: about 1 % of the halves need
+more random bits, which come from *auxiliary* Philox blocks keyed by the same
+(seed, pass, parcel, stream, draw) plus a flag and an attempt number in the key
+(``_ziggurat_slow``), so a normal stays a pure function of its key.
 
 Two calling styles, both ``@njit``:
 
@@ -72,6 +76,49 @@ _S16 = np.uint64(16)
 _S32 = np.uint64(32)
 _TWO_M53 = 1.0 / 9007199254740992.0  # 2**-53
 _TWO_PI = 2.0 * math.pi
+_MASK8 = np.uint64(0xFF)
+_MASK52 = np.uint64(0xFFFFFFFFFFFFF)
+_S8 = np.uint64(8)
+_S9 = np.uint64(9)
+_ONE = np.uint64(1)
+_AUX_FLAG = np.uint64(0x80000000)  # top bit of key word 1 (seed < 2**63 leaves it free)
+_ZIG_MAX_TRIES = 1000  # cap of the ziggurat's rejection loop (P(reached) < 1e-1500)
+
+
+def _ziggurat_tables(layers=256, r=3.6541528853610088):
+    """Tables (ki, wi, fi) of the ziggurat for the standard normal (Marsaglia & Tsang 2000).
+
+    f(x) = exp(−x²/2); layer i (1 ≤ i < 256) is the rectangle [0, x_i] × [f(x_i), f(x_{i−1})],
+    x_0 = 0 < x_1 < … < x_255 = r, all of area v = r f(r) + ∫_r^∞ f (layer 0: the base
+    strip [0, v/f(r)] × [0, f(r)], whose part beyond r stands for the tail).  A 64-bit word
+    gives the layer (8 bits), a sign (1 bit) and a 52-bit fraction; x = fraction · wi[layer]
+    is accepted at once when fraction < ki[layer] (x inside the part of the layer under f).
+    r makes the recursion x_{i−1} = f⁻¹(f(x_i) + v/x_i) end at x_0 = 0 (to 4e-15).
+    """
+    m1 = 2.0**52
+    f = lambda x: math.exp(-0.5 * x * x)  # noqa: E731
+    v = r * f(r) + math.sqrt(0.5 * math.pi) * math.erfc(r / math.sqrt(2.0))
+    q = v / f(r)
+    ki = np.zeros(layers, dtype=np.uint64)
+    wi = np.zeros(layers)
+    fi = np.zeros(layers)
+    ki[0] = np.uint64(int(r / q * m1))
+    wi[0] = q / m1
+    wi[layers - 1] = r / m1
+    fi[0] = 1.0
+    fi[layers - 1] = f(r)
+    x_hi = r
+    for i in range(layers - 2, 0, -1):
+        x = math.sqrt(-2.0 * math.log(v / x_hi + f(x_hi)))
+        ki[i + 1] = np.uint64(int(x / x_hi * m1))
+        x_hi = x
+        fi[i] = f(x)
+        wi[i] = x / m1
+    return ki, wi, fi, r
+
+
+_ZIG_K, _ZIG_W, _ZIG_F, _ZIG_R = _ziggurat_tables()
+_ZIG_INV_R = 1.0 / _ZIG_R
 
 
 @njit(**JIT_FLAGS)
@@ -135,18 +182,79 @@ def uniform_pair(seed, pass_, parcel, stream, draw):
 
 
 @njit(**JIT_FLAGS)
-def normal_pair(seed, pass_, parcel, stream, draw):
-    """Two independent standard normals from one key (Box & Muller 1958).
+def _aux_block(seed, pass_, parcel, stream, draw, lane, attempt):
+    """Auxiliary block ``attempt`` ≥ 1 of half ``lane`` (0, 1) of a draw, for the ziggurat's rare
+    slow path: the draw's counter under the key (seed low word XOR (2 attempt + lane), seed high
+    word with the flag bit set).  No regular block has the flag, so the auxiliary bits are
+    independent of every regular draw and of each other within a pass."""
+    s = np.uint64(seed)
+    d = np.uint64(draw)
+    k0 = (s & _MASK32) ^ (np.uint64(2 * attempt + lane) & _MASK32)
+    k1 = (s >> _S32) | _AUX_FLAG
+    c0 = d & _MASK32
+    c1 = ((np.uint64(stream) & _MASK16) << _S16) | ((d >> _S32) & _MASK16)
+    c2 = np.uint64(parcel) & _MASK32
+    c3 = np.uint64(pass_) & _MASK32
+    o0, o1, o2, o3 = philox4x32(c0, c1, c2, c3, k0, k1)
+    return (np.uint64(o0) << _S32) | np.uint64(o1), (np.uint64(o2) << _S32) | np.uint64(o3)
 
-    z₁ = sqrt(−2 ln(1 − u₁)) cos(2π u₂),  z₂ = sqrt(−2 ln(1 − u₁)) sin(2π u₂),
-    with u₁, u₂ the two 53-bit uniforms of the Philox block (1 − u₁ ∈ (0, 1]).
+
+@njit(**JIT_FLAGS)
+def _ziggurat_slow(w, seed, pass_, parcel, stream, draw, lane):
+    """Standard normal from the 64-bit word w by the ziggurat (numpy's ``random_standard_normal``
+    algorithm), taking the extra bits it may need from ``_aux_block`` (attempts 1, 2, …): the
+    wedge test takes one uniform from a block and, if it rejects, restarts with the block's
+    other half as the new word; the tail (Marsaglia 1964) takes two uniforms per try."""
+    attempt = 0
+    while attempt < _ZIG_MAX_TRIES:
+        idx = np.intp(w & _MASK8)
+        neg = ((w >> _S8) & _ONE) != np.uint64(0)
+        rabs = (w >> _S9) & _MASK52
+        x = np.float64(rabs) * _ZIG_W[idx]
+        if neg:
+            x = -x
+        if rabs < _ZIG_K[idx]:
+            return x
+        if idx == 0:  # tail beyond r: r + e1/r, accepted if 2 e2 > (e1/r)², e1, e2 ~ Exp(1)
+            while attempt < _ZIG_MAX_TRIES:
+                attempt += 1
+                a, b = _aux_block(seed, pass_, parcel, stream, draw, lane, attempt)
+                xx = -_ZIG_INV_R * math.log1p(-_bits_to_unit(np.uint64(a)))
+                yy = -math.log1p(-_bits_to_unit(np.uint64(b)))
+                if yy + yy > xx * xx:
+                    return -(_ZIG_R + xx) if neg else _ZIG_R + xx
+            return 0.0
+        # wedge: accept x with probability (f(x) − f(x_i)) / (f(x_{i−1}) − f(x_i))
+        attempt += 1
+        a, b = _aux_block(seed, pass_, parcel, stream, draw, lane, attempt)
+        if (_ZIG_F[idx - 1] - _ZIG_F[idx]) * _bits_to_unit(np.uint64(a)) + _ZIG_F[idx] < math.exp(-0.5 * x * x):
+            return x
+        w = np.uint64(b)
+    return 0.0
+
+
+@njit(**JIT_FLAGS)
+def _ziggurat(w, seed, pass_, parcel, stream, draw, lane):
+    """Standard normal from the 64-bit word w: the ziggurat's fast path (≈ 99 % of words),
+    else ``_ziggurat_slow``."""
+    idx = np.intp(w & _MASK8)
+    rabs = (w >> _S9) & _MASK52
+    if rabs < _ZIG_K[idx]:
+        x = np.float64(rabs) * _ZIG_W[idx]
+        return -x if ((w >> _S8) & _ONE) != np.uint64(0) else x
+    return _ziggurat_slow(w, seed, pass_, parcel, stream, draw, lane)
+
+
+@njit(**JIT_FLAGS)
+def normal_pair(seed, pass_, parcel, stream, draw):
+    """Two independent standard normals from one key: the ziggurat (Marsaglia & Tsang 2000;
+    256 layers, 52-bit fractions, as numpy) on each 64-bit half of the Philox block; the rare
+    words that need more bits take them from auxiliary blocks of the same key
+    (``_ziggurat_slow``), so the pair is a pure function of the key.
     """
     a, b = random_block(seed, pass_, parcel, stream, draw)
-    u1 = _bits_to_unit(np.uint64(a))
-    u2 = _bits_to_unit(np.uint64(b))
-    rad = math.sqrt(-2.0 * math.log(1.0 - u1))
-    phi = _TWO_PI * u2
-    return rad * math.cos(phi), rad * math.sin(phi)
+    return (_ziggurat(np.uint64(a), seed, pass_, parcel, stream, draw, 0),
+            _ziggurat(np.uint64(b), seed, pass_, parcel, stream, draw, 1))
 
 
 @njit(**JIT_FLAGS)

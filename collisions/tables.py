@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from .conf import JIT_FLAGS
-from .random import STREAM_WALL, rng_state
+from .random import STREAM_WALL, rng_state  # the impacts' Philox streams (ziggurat normals)
 from .wall import WallOptions, make_wall_collision
 
 IMPACT_ANGLES_DEG = (1.0, 2.0, 3.0, 5.0, 7.5, 10.0, 15.0, 20.0, 30.0, 45.0)

@@ -46,7 +46,7 @@ import numpy as np
 from numba import njit
 
 from .conf import JIT_FLAGS, KERNEL_FLAGS
-from .random import next_normal, next_uniform
+from .random import next_normal, next_uniform  # Philox streams; normals by the ziggurat
 
 # Wall-kernel status codes (returned; the tracker counts them).
 WALL_NO_IMPACT = 0  # not moving towards the wall: only the position was corrected

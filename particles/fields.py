@@ -196,8 +196,12 @@ def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out):
     s = th * nt / (2.0 * math.pi) - 0.5
     kf = math.floor(s)
     wt = s - kf
-    k0 = int(kf) % nt
-    k1 = (k0 + 1) % nt
+    k0 = int(kf)  # -1 <= k0 < nt for 0 <= th <= 2 pi: wrap without an integer division
+    if k0 < 0 or k0 >= nt:
+        k0 = k0 % nt
+    k1 = k0 + 1
+    if k1 == nt:
+        k1 = 0
     r = math.sqrt(y * y + z * z)
     ci, cj, ck = cell_index(x, r, th, length, nx, r_edges, nt)
     dwx = 0.0 if (nx == 1 or wx <= 0.0 or wx >= 1.0) else 1.0 / (xc[1] - xc[0])

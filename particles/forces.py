@@ -31,10 +31,12 @@ from collisions.conf import JIT_FLAGS
 __all__ = [
     "schiller_naumann_drag_coefficient",
     "schiller_naumann_drag_factor",
+    "schiller_naumann_drag_factor_ln",
     "response_time",
     "mei_1992_correction",
     "saffman_mei_lift_coefficient",
     "lun_liu_1997_lift_coefficient",
+    "lun_liu_1997_lift_coefficient_ln",
     "oesterle_bui_dinh_1998_lift_coefficient",
     "dennis_1980_torque_coefficient",
     "torque_factor",
@@ -45,6 +47,17 @@ SAFFMAN_CONSTANT = 4.1126  # 2 · 6.46 / π (Saffman 1965/68, in Mei's coefficie
 
 
 @njit(**JIT_FLAGS)
+def _log0(x):
+    """ln x for x > 0, −∞ at 0, so that exp(a · _log0(x)) = x^a (a > 0) also at x = 0.
+
+    Powers of one Reynolds number are written exp(a ln Re): the tracking step takes one
+    logarithm for the drag and the slip-rotation lift (the ``*_ln`` forms) instead of two
+    ``pow`` calls.
+    """
+    return math.log(x) if x > 0.0 else -math.inf
+
+
+@njit(**JIT_FLAGS)
 def schiller_naumann_drag_coefficient(re_p):
     """C_D [-] of Schiller & Naumann (1933): 24/Re (1 + 0.15 Re^0.687) for Re_p ≤ 1000, 0.44 above.
 
@@ -52,7 +65,7 @@ def schiller_naumann_drag_coefficient(re_p):
     """
     if re_p > 1000.0:
         return 0.44
-    return 24.0 / re_p * (1.0 + 0.15 * re_p**0.687)
+    return 24.0 / re_p * (1.0 + 0.15 * math.exp(0.687 * _log0(re_p)))
 
 
 @njit(**JIT_FLAGS)
@@ -61,9 +74,15 @@ def schiller_naumann_drag_factor(re_p):
 
     re_p : particle Reynolds number [-], ≥ 0.
     """
+    return schiller_naumann_drag_factor_ln(re_p, _log0(re_p))
+
+
+@njit(**JIT_FLAGS)
+def schiller_naumann_drag_factor_ln(re_p, ln_re):
+    """``schiller_naumann_drag_factor`` given also ln_re = ``_log0(re_p)`` (shared by the step)."""
     if re_p > 1000.0:
         return 0.44 * re_p / 24.0
-    return 1.0 + 0.15 * re_p**0.687
+    return 1.0 + 0.15 * math.exp(0.687 * ln_re)  # Re^0.687
 
 
 @njit(**JIT_FLAGS)
@@ -107,10 +126,16 @@ def lun_liu_1997_lift_coefficient(re_p, re_r):
     for Re_p > 1 (published for Re_p < 1000; used unchanged above).  re_p > 0, re_r ≥ 0
     (diameter-based).  Laín & Sommerfeld, eqs. 8–9.
     """
+    return lun_liu_1997_lift_coefficient_ln(re_p, re_r, _log0(re_p))
+
+
+@njit(**JIT_FLAGS)
+def lun_liu_1997_lift_coefficient_ln(re_p, re_r, ln_re):
+    """``lun_liu_1997_lift_coefficient`` given also ln_re = ``_log0(re_p)`` (shared by the step)."""
     c = re_r / re_p
     if re_p <= 1.0:
         return c
-    return c * (0.178 + 0.822 * re_p**-0.522)
+    return c * (0.178 + 0.822 * math.exp(-0.522 * ln_re))  # Re^-0.522
 
 
 @njit(**JIT_FLAGS)

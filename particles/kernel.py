@@ -234,9 +234,13 @@ def walk_segment(p0x, p0y, p0z, dx, dy, dz, i, j, k, x_edges, r_edges, ray_sin, 
         elif face == 3:
             j -= 1
         elif face == 4:
-            k = (k + 1) % nt
+            k += 1
+            if k >= nt:
+                k -= nt
         else:
-            k = (k - 1) % nt
+            k -= 1
+            if k < 0:
+                k += nt
         if n >= seg_cell.shape[0]:
             seg_frac[n - 1] += 1.0 - s  # pathological: the rest stays in the last cell
             break
@@ -283,7 +287,8 @@ def make_motion(options=PhysicsOptions()):
         rz = uf[2] - vel[2]
         slip = math.sqrt(rx * rx + ry * ry + rz * rz)
         re_p = rho_f * d * slip / mu
-        tau = fl.response_time(rho_p, d, mu, fl.schiller_naumann_drag_factor(re_p))
+        ln_re = fl._log0(re_p)  # one logarithm for the drag's and the lift's powers of Re_p
+        tau = fl.response_time(rho_p, d, mu, fl.schiller_naumann_drag_factor_ln(re_p, ln_re))
         gy = -prm[P_GRAV] if gravity else 0.0
         # lift accelerations are linear in the slip: a_L = b x (u_F - u) with
         # b = c_M Omega - c_S omega_F (Saffman: c_S (u_rel x omega_F); Magnus: c_M (Omega x u_rel))
@@ -309,7 +314,7 @@ def make_motion(options=PhysicsOptions()):
             if om > 0.0 and re_p > 0.0:
                 re_r = rho_f * d * d * om / mu
                 if lun_liu:
-                    clr = fl.lun_liu_1997_lift_coefficient(re_p, re_r)
+                    clr = fl.lun_liu_1997_lift_coefficient_ln(re_p, re_r, ln_re)
                 else:
                     clr = fl.oesterle_bui_dinh_1998_lift_coefficient(re_p, re_r)
                 c = 0.125 * math.pi * rho_f * d * d * clr * slip / (om * m)
@@ -609,7 +614,13 @@ def make_tracker(options=PhysicsOptions()):
                 nseg, end = walk_segment(saved[0], saved[1], saved[2], dxs, dys, dzs, ci, cj, ck,
                                          x_edges, r_edges, ray_sin, ray_cos, seg_cell, seg_frac)
                 inside = 0.0
-                uj = useen[0] * imp[0] + useen[1] * imp[1] + useen[2] * imp[2]
+                imp0 = imp[0]  # in locals: the stores into ``out`` below could alias the arrays
+                imp1 = imp[1]
+                imp2 = imp[2]
+                om0 = omega[0]
+                om1 = omega[1]
+                om2 = omega[2]
+                uj = useen[0] * imp0 + useen[1] * imp1 + useen[2] * imp2
                 kseen = 0.5 * (useen[0] * useen[0] + useen[1] * useen[1] + useen[2] * useen[2])
                 wdt = ndot * dt
                 ux = dxs / dt
@@ -637,17 +648,17 @@ def make_tracker(options=PhysicsOptions()):
                     out[base + A_MUU] += wmf * ux * ux
                     out[base + A_MUU + 1] += wmf * uy * uy
                     out[base + A_MUU + 2] += wmf * uz * uz
-                    out[base + A_J] += ndot * f * imp[0]
-                    out[base + A_J + 1] += ndot * f * imp[1]
-                    out[base + A_J + 2] += ndot * f * imp[2]
+                    out[base + A_J] += ndot * f * imp0
+                    out[base + A_J + 1] += ndot * f * imp1
+                    out[base + A_J + 2] += ndot * f * imp2
                     out[base + A_SK] += ndot * f * uj
                     if rotation:
-                        out[base + A_NW] += wn * omega[0]
-                        out[base + A_NW + 1] += wn * omega[1]
-                        out[base + A_NW + 2] += wn * omega[2]
-                        out[base + A_NWW] += wn * omega[0] * omega[0]
-                        out[base + A_NWW + 1] += wn * omega[1] * omega[1]
-                        out[base + A_NWW + 2] += wn * omega[2] * omega[2]
+                        out[base + A_NW] += wn * om0
+                        out[base + A_NW + 1] += wn * om1
+                        out[base + A_NW + 2] += wn * om2
+                        out[base + A_NWW] += wn * om0 * om0
+                        out[base + A_NWW + 1] += wn * om1 * om1
+                        out[base + A_NWW + 2] += wn * om2 * om2
                     out[base + A_VISITS] += 1.0
                     out[base + A_KSEEN] += wn * kseen
                     out[base + A_BETA] += wmf / tau_step
@@ -668,9 +679,9 @@ def make_tracker(options=PhysicsOptions()):
                 if inside < 1.0:  # the part beyond the inlet/outlet plane: its impulse stays in the pipe
                     base = last * NACC
                     rest = 1.0 - inside
-                    out[base + A_J] += ndot * rest * imp[0]
-                    out[base + A_J + 1] += ndot * rest * imp[1]
-                    out[base + A_J + 2] += ndot * rest * imp[2]
+                    out[base + A_J] += ndot * rest * imp0
+                    out[base + A_J + 1] += ndot * rest * imp1
+                    out[base + A_J + 2] += ndot * rest * imp2
                     out[base + A_SK] += ndot * rest * uj
                     out[base + A_BETA] += w_m * rest * dt / tau_step
                 for c in range(3):
@@ -733,8 +744,7 @@ def make_tracker(options=PhysicsOptions()):
                         if drift:
                             un += (1.0 - rp) * t_ln * (2.0 / 3.0) * src[F_DKX + c]
                         useen[c] = un
-                for qq in range(NF):
-                    fvals[qq] = dvals[qq]
+                fvals, dvals = dvals, fvals  # the fields at x_{n+1} become those of the next step
                 ci = ni
                 cj = nj
                 ck = nk

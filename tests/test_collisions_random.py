@@ -198,3 +198,54 @@ def test_independent_of_thread_count():
     assert np.array_equal(one, many)
     # and equal to a serial evaluation of the same keys
     assert one[123, 17] == cr.normal(21, 4, 123, cr.STREAM_DISPERSION, 17)
+
+
+@njit
+def _ziggurat_sample(n, seed):
+    """n normal pairs of one parcel stream, and which halves took the slow path."""
+    z = np.empty(2 * n)
+    slow = np.zeros(2 * n, dtype=np.bool_)
+    for i in range(n):
+        a, b = cr.random_block(seed, 2, 77, cr.STREAM_DISPERSION, i)
+        for lane, w in enumerate((a, b)):
+            idx = np.intp(w & cr._MASK8)
+            slow[2 * i + lane] = ((w >> cr._S9) & cr._MASK52) >= cr._ZIG_K[idx]
+        z[2 * i], z[2 * i + 1] = cr.normal_pair(seed, 2, 77, cr.STREAM_DISPERSION, i)
+    return z, slow
+
+
+def test_ziggurat_normals_fine_bins_and_tails():
+    """N(0, 1) to the far tail: 200 equiprobable bins, and the rates beyond the ziggurat's
+    base-strip edge r (the tail algorithm) and beyond 4 and 4.5 against the normal law."""
+    n = 4_000_000
+    z, slow = _ziggurat_sample(n, 31)
+    assert 0.005 < slow.mean() < 0.02  # the wedge/tail paths are exercised (≈ 1 %)
+    edges = stats.norm.ppf(np.linspace(0.0, 1.0, 201)[1:-1])
+    counts = np.bincount(np.searchsorted(edges, z), minlength=200)
+    assert stats.chisquare(counts).pvalue > 1e-3
+    for t in (cr._ZIG_R, 4.0, 4.5):
+        expected = z.size * 2.0 * stats.norm.sf(t)
+        assert abs(np.sum(np.abs(z) > t) - expected) < 5.0 * np.sqrt(expected) + 1.0, t
+    # the slow-path values alone are the normal law restricted to the wedges and the tail:
+    # symmetric, and beyond r they are exactly the tail
+    zs = z[slow]
+    assert abs(np.mean(zs > 0) - 0.5) < 5 * 0.5 / np.sqrt(zs.size)
+    assert np.sum(np.abs(z) > cr._ZIG_R) == np.sum(np.abs(zs) > cr._ZIG_R)
+    assert abs(z.mean()) < 5 / np.sqrt(z.size) and abs(z.var() - 1) < 5 * np.sqrt(2 / z.size)
+
+
+def test_ziggurat_slow_path_is_a_pure_function_of_the_key():
+    """Halves that need the wedge or tail test draw auxiliary blocks of their own key: the
+    pair is the same compiled and in Python, and a stream still advances one draw per pair."""
+    z, slow = _ziggurat_sample(20_000, 5)
+    draws = np.flatnonzero(slow.reshape(-1, 2).any(axis=1))[:20]
+    assert draws.size == 20
+    for d in draws:
+        k = (5, 2, 77, cr.STREAM_DISPERSION, int(d))
+        assert cr.normal_pair(*k) == cr.normal_pair.py_func(*k) == (z[2 * d], z[2 * d + 1])
+    rng = cr.rng_state(5, 2, 77, cr.STREAM_DISPERSION, int(draws[0]))
+    assert cr.next_normal_pair(rng) == (z[2 * draws[0]], z[2 * draws[0] + 1])
+    assert rng[cr.RNG_DRAW] == draws[0] + 1
+    # auxiliary blocks differ from the regular blocks of the same counter
+    assert cr._aux_block(5, 2, 77, 1, 3, 0, 1) != cr.random_block(5, 2, 77, 1, 3)
+    assert cr._aux_block(5, 2, 77, 1, 3, 0, 1) != cr._aux_block(5, 2, 77, 1, 3, 1, 1)

@@ -234,6 +234,8 @@ ARGS = {
     "mei_1992_correction": MEI_CASES,
     "saffman_mei_lift_coefficient": MEI_CASES,
     "lun_liu_1997_lift_coefficient": [(0.5, 0.2), (1.0, 0.2), (30.0, 7.0)],
+    "schiller_naumann_drag_factor_ln": [(r, math.log(r)) for r in RE_GRID] + [(0.0, -math.inf)],
+    "lun_liu_1997_lift_coefficient_ln": [(r, 0.2, math.log(r)) for r in (0.5, 1.0, 30.0)],
     "oesterle_bui_dinh_1998_lift_coefficient": [(0.1, 0.05), (10.0, 5.0)],
     "dennis_1980_torque_coefficient": [(1.0,), (32.0,), (100.0,)],
     "torque_factor": [(0.0,), (32.0,), (100.0,)],
@@ -246,3 +248,14 @@ def test_compiled_matches_py_func(name):
     fn = getattr(pf, name)
     for args in ARGS[name]:
         assert fn(*args) == pytest.approx(fn.py_func(*args), rel=1e-14), (name, args)
+
+
+def test_ln_forms_equal_the_plain_correlations_bitwise():
+    """The step's ``*_ln`` forms (one shared ln Re_p) are the same numbers as the plain functions."""
+    for r in [0.0] + RE_GRID:
+        assert pf.schiller_naumann_drag_factor_ln(r, pf._log0(r)) == pf.schiller_naumann_drag_factor(r)
+    for r in RE_GRID:
+        assert pf.lun_liu_1997_lift_coefficient_ln(r, 3.0, pf._log0(r)) == pf.lun_liu_1997_lift_coefficient(r, 3.0)
+        # Re^0.687 through exp(0.687 ln Re) is the power to round-off
+        assert pf.schiller_naumann_drag_factor(r) == pytest.approx(1.0 + 0.15 * r**0.687 if r <= 1000 else 0.44 * r / 24,
+                                                                   rel=1e-14)
