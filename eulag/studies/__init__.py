@@ -8,6 +8,8 @@
                                           [--only ...]
     eulag study ding-friction             [--quick] [-o DIR] [--resume] [--report] [--quiet]
                                           [--only MODELS] [--rates LIST]
+    eulag study strauss                   [--quick] [-o DIR] [--resume] [--report] [--quiet] [--long]
+                                          [--only GROUPS] [--feeds LIST] [--velocities LIST] [--window S]
 
 Each study runs its cases through :func:`eulag.runs.execute` (one dataset ``<run>.nc`` per
 case in the output folder, default ``results/<study>/``), then writes a generated table
@@ -69,6 +71,7 @@ from .runner import (BASE_CASE, EXIT_BAD_INPUT, QUICK_NUMERICS, RECORD_VERSION, 
                      run_case, run_time, write_record)
 from .scenes import scene_cases, study_scenes
 from .stability import stability_cases, study_stability
+from .strauss import study_cases as strauss_cases, study_strauss
 from .tsuji_morikawa import study_tsuji_morikawa, tsuji_morikawa_cases
 
 # helpers the tests reach as ``studies.<name>`` (not part of the API)
@@ -83,9 +86,9 @@ __all__ = ["add_arguments", "STUDIES", "BASE_CASE", "QUICK_NUMERICS", "STABILITY
            "pareto_front", "provenance", "read_measurements", "Setting", "error_runtime_plan",
            "scene_cases", "stability_cases", "tsuji_morikawa_cases", "study_error_runtime", "study_scenes",
            "study_stability", "study_tsuji_morikawa", "ablation_cases", "study_scenes_ablation",
-           "ding_friction_cases", "study_ding_friction"]
+           "ding_friction_cases", "study_ding_friction", "strauss_cases", "study_strauss"]
 
-STUDIES = ("tsuji-morikawa", "scenes", "scenes-ablation", "error-runtime", "stability", "ding-friction")
+STUDIES = ("tsuji-morikawa", "scenes", "scenes-ablation", "error-runtime", "stability", "ding-friction", "strauss")
 
 
 def add_arguments(parser) -> None:
@@ -128,6 +131,18 @@ def add_arguments(parser) -> None:
                         "quick: 0.8)")
     p.set_defaults(func=_entry(study_ding_friction))
 
+    p = sub.add_parser("strauss", help="dense-phase DEM-Darcy slug conveying: characteristic curves, mass flux, "
+                                       "viscosity, friction and the vertical tube against Strauss et al. (2006)")
+    _common(p, "strauss", only="comma-separated groups: default, curves, mass-flux, viscosity, friction, "
+                               "vertical, long (default: all but long)")
+    p.add_argument("--long", action="store_true", help="also the 22.5 s statistics run (hours)")
+    p.add_argument("--feeds", metavar="LIST", help="feed rates [kg/h] of the characteristic curves (default 2.49,9.95)")
+    p.add_argument("--velocities", metavar="LIST",
+                   help="superficial gas velocities [m/s] of the characteristic curves (default 0.2,...,5)")
+    p.add_argument("--window", type=float, metavar="S",
+                   help="simulated time of every run but the long one [s] (default: the case files' 4 s)")
+    p.set_defaults(func=_entry(study_strauss))
+
 
 def _common(p, name: str, only: str | None = None) -> None:
     if only is not None:
@@ -142,7 +157,7 @@ def _common(p, name: str, only: str | None = None) -> None:
                    help="run nothing: write the table from the datasets, records and checkpoints "
                         "already in the output folder (an unfinished run's row says how far it got)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
-    if name not in ("error-runtime", "ding-friction"):  # an axis there; no parcels in the two-fluid model
+    if name not in ("error-runtime", "ding-friction", "strauss"):  # an axis there; no parcels in dense models
         p.add_argument("--parcels", type=_positive_int, metavar="N",
                        help="parcels per pass in the final passes of every run (a lighter full-mode "
                             "study; the stability study's 1e6-parcel case keeps its count)")

@@ -1,0 +1,182 @@
+"""eulag study strauss: the plan holds the paper's runs; the quick mode runs end to end through
+the run layer and writes its table (Markdown + CSV), figures and README section (keeping the
+hand-written text around it); --report reuses the records without running; bad options exit 2
+with one line; the regime classifier (SMH Fig. 3) on synthetic datasets.
+
+Quick-mode numbers are not results: the tests check the machinery, never specific values.
+"""
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from eulag import slug, studies
+from eulag.cli import main
+from eulag.studies import strauss
+
+
+def study(*argv):
+    return main(["study", "strauss", *[str(a) for a in argv]])
+
+
+def rows(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+# ---------------------------------------------------------------------------- plan
+def test_registered_and_the_full_plan():
+    assert "strauss" in studies.STUDIES
+    plan = studies.strauss_cases(False)
+    default = plan["strauss__vs-1.0__feed-2.49"]
+    assert set(default[0]) >= {"default", "curves", "mass-flux", "viscosity", "friction"}
+    assert default[2].data["numerics"]["end_time_s"] == 4.0
+    curves = [(i["feed"], i["vs"]) for n, (g, i, c) in plan.items() if "curves" in g]
+    assert sorted(curves) == sorted((f, v) for f in (2.49, 9.95) for v in strauss.VELOCITIES)
+    assert min(v for _, v in curves) <= 0.2 and max(v for _, v in curves) >= 5.0
+    for n, (g, i, c) in plan.items():
+        d = c.data
+        assert d["gas"]["superficial_velocity_m_s"] == i["vs"] and d["feed"]["mass_flow_kg_h"] == i["feed"]
+        assert d["gas"]["viscosity_Pa_s"] == pytest.approx(i["eta_cP"] * 1e-3)
+        assert d["grains"]["friction"] == d["grains"]["wall_friction"] == i["mu"]
+        slug.validate_slug_case(d)
+    assert {i["eta_cP"] for n, (g, i, c) in plan.items() if "viscosity" in g} == {0.045, 0.0673, 0.085}
+    assert plan["strauss_vertical__vs-1.0__feed-2.49"][2].data["tube"]["orientation"] == "vertical"
+    assert not any("long" in g for g, _, _ in plan.values())
+    long = studies.strauss_cases(False, long=True)
+    assert long["strauss__vs-1.0__feed-2.49__t-22.5"][2].data["numerics"]["end_time_s"] == 22.5
+    short = studies.strauss_cases(False, ["curves"], feeds=(2.49,), velocities=(0.2, 5.0), window=1.5)
+    assert sorted(short) == ["strauss__vs-0.2__feed-2.49__t-1.5", "strauss__vs-5.0__feed-2.49__t-1.5"]
+
+
+# ---------------------------------------------------------------------------- regime
+def _synthetic(phi, u, n_tube, outflow=None, periodic=False, dt=0.01):
+    """A slug dataset with the given porosity and grain velocity (time, x) on the paper's tube."""
+    case = slug.validate_slug_case(json.loads(json.dumps(strauss._load("strauss_horizontal").data)))
+    case["tube"]["periodic"] = periodic
+    nt, nx = phi.shape
+    t = (np.arange(nt) + 1) * dt
+    x = (np.arange(nx) + 0.5) * 0.525 / nx
+    outflow = np.zeros(nt) if outflow is None else outflow
+    return xr.Dataset({"porosity": (("time", "x"), phi), "grain_velocity": (("time", "x"), u),
+                       "grains_in_tube": ("time", np.full(nt, float(n_tube))), "outflow_count": ("time", outflow)},
+                      coords={"time": t, "x": x},
+                      attrs={"case": json.dumps(case), "feed_speed_m_s": 0.0446})
+
+
+def test_a_resting_packing_is_resting_bulk():
+    """The first 60 slices a packing of porosity 0.5 pushed at the feed speed, the rest empty."""
+    phi = np.ones((100, 150))
+    phi[:, :60] = 0.5
+    u = np.where(phi < 0.6, 0.0446 * 0.86, 0.0)  # compacted below the feed porosity: slower than v_feed
+    r = strauss.classify_regime(_synthetic(phi, u, 2000), t_min=0.5)
+    assert r["regime"] == "resting bulk"
+    assert r["dense_share"] == pytest.approx(1.0) and r["moving_share"] == 0.0
+    assert r["outflow_per_feed"] == 0.0
+
+
+def _moving_slug(speed, nt=100, nx=150):
+    """One slug of 15 slices moving at ``speed`` over a resting layer of porosity 0.9."""
+    phi = np.full((nt, nx), 0.9)
+    u = np.zeros((nt, nx))
+    for k in range(nt):
+        i0 = int((0.05 + speed * (k + 1) * 0.01) / 0.0035) % (nx - 15)
+        phi[k, i0:i0 + 15] = 0.5
+        u[k, i0:i0 + 15] = speed
+    return phi, u
+
+
+def test_a_moving_slug_is_slugs_and_a_creeping_one_is_not():
+    phi, u = _moving_slug(0.35)
+    r = strauss.classify_regime(_synthetic(phi, u, 1500), t_min=0.0)
+    assert r["regime"] == "slugs"
+    assert r["dense_share"] < 0.5 and r["moving_share"] == pytest.approx(1.0)  # a resting layer holds more
+    assert r["moving_share_all"] < 0.5
+    assert r["dense_velocity_m_s"] == pytest.approx(0.35)
+    # the same slug no faster than the feed pushes it: the gas does not move it
+    phi, u = _moving_slug(0.05)
+    assert strauss.classify_regime(_synthetic(phi, u, 1500), t_min=0.0)["regime"] == "resting bulk"
+
+
+def test_an_empty_tube_and_outflow_per_feed():
+    nt = 100
+    phi = np.full((nt, 150), 0.98)
+    u = np.full((nt, 150), 1.5)
+    # the feed (2.49 kg/h: 514 grains/s) leaves at the outlet
+    m_p = 937.0 * math.pi * 1.4e-3 ** 3 / 6
+    rate = 2.49 / 3600 / m_p
+    outflow = rate * (np.arange(nt) + 1) * 0.01
+    r = strauss.classify_regime(_synthetic(phi, u, 40, outflow=outflow), t_min=0.5)
+    assert r["regime"] == "nearly empty tube" and r["dense_share"] == 0.0
+    assert r["outflow_per_feed"] == pytest.approx(1.0, rel=1e-9)
+    # a few dense slices at the inlet, pushed by the feed, do not make slugs: the dispersed grains
+    # hold and carry most of the solids
+    phi[:, :3] = 0.55
+    u[:, :3] = 0.04
+    assert strauss.classify_regime(_synthetic(phi, u, 40), t_min=0.0)["regime"] == "nearly empty tube"
+    # no grains at all
+    none = _synthetic(np.ones((10, 150)), np.zeros((10, 150)), 0)
+    assert strauss.classify_regime(none)["regime"] == "nearly empty tube"
+
+
+# ---------------------------------------------------------------------------- the study
+def test_quick_runs_end_to_end_and_report_reuses_the_records(tmp_path, capsys):
+    out = tmp_path / "strauss"
+    out.mkdir()
+    (out / "README.md").write_text("# Hand-written\n\nA table of runs made by hand: 736 Pa/m.\n")
+    assert study("--quick", "--quiet", "-o", out) == 0
+    readme = (out / "README.md").read_text()
+    assert readme.startswith("# Hand-written") and "736 Pa/m" in readme
+    assert readme.count(strauss.BEGIN) == 1 and readme.count(strauss.END) == 1
+    assert "Quick mode" in readme and "not results" in readme and "wall time of this invocation" in readme
+    assert "Against the paper" in readme and "0.3–0.42" in readme
+    table = rows(out / "strauss.csv")
+    plan = studies.strauss_cases(True)
+    assert [r["run"] for r in table] == list(plan)
+    for r in table:
+        assert r["status"] == "yes" and int(r["lost"]) == 0
+        assert math.isfinite(float(r["dp"])) and float(r["grains"]) >= 0
+        assert r["regime"] in strauss.REGIMES
+    for fig in ("fig3_characteristic_curves", "fig5_mass_flux", "fig6_viscosity", "fig7_friction",
+                "spacetime_strauss__vs-1.0__feed-2.49__quick"):
+        assert f"]({fig}.png)" in readme
+    for ln in readme.splitlines():  # every figure the README shows exists
+        if ln.startswith("!["):
+            target = out / ln[ln.index("(") + 1: ln.rindex(")")]
+            assert target.is_file() and target.stat().st_size > 1000, target
+    assert len(list(out.glob("*.record.json"))) == len(plan)
+
+    # --report without the datasets: from the records, nothing run; the section replaced, not added
+    for nc in out.glob("*.nc"):
+        nc.unlink()
+    capsys.readouterr()
+    assert study("--quick", "--report", "-o", out) == 0
+    err = capsys.readouterr().err
+    assert "running" not in err and "reported from its record" in err
+    assert not any(out.glob("*.nc"))
+    assert rows(out / "strauss.csv") == table
+    readme2 = (out / "README.md").read_text()
+    assert readme2.count(strauss.BEGIN) == 1 and readme2.startswith("# Hand-written")
+    assert "--report" in readme2
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--quick", "--frobnicate"], "unrecognized arguments"),
+    (["--quick", "--only", "curves,spirals"], "unknown groups spirals"),
+    (["--only", "long"], "allowed only with --long"),
+    (["--quick", "--long"], "not with --quick"),
+    (["--feeds", "2.49,-1"], "--feeds 2.49,-1: allowed a comma-separated list of positive numbers"),
+    (["--velocities", "fast"], "--velocities fast"),
+    (["--window", "0"], "--window 0"),
+    (["--quick", "--parcels", "100"], "unrecognized arguments"),
+])
+def test_bad_option_exits_2_with_one_line(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert study(*argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("eulag: error:") and message in err[0]
+    assert not any(tmp_path.rglob("*.nc"))
