@@ -37,6 +37,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
+from .linalg import LaggedSparseLU
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -225,6 +226,9 @@ STEADY_R2 = 0.9
 #: solve the cross-section equations with lagged factorisations, refined (rans.linalg.LaggedFactor);
 #: False: factorise every matrix (the reference the tests compare with)
 REUSE_FACTORISATION = True
+#: the same for the coupled cross-flow step's 3n system (rans.linalg.LaggedSparseLU, SuperLU
+#: refined); False: a fresh SuperLU factorisation per outer iteration (as with REUSE_FACTORISATION = False)
+REUSE_COUPLED_FACTORISATION = True
 #: k >= K_FLOOR U_b^2 and eps >= C_mu k_floor^(3/2) / D after every solve
 #: (docs/physics.md, section 2)
 K_FLOOR = 1e-10
@@ -269,6 +273,10 @@ class _StationSolver:
                             for name, floor in (("momentum", 1e-3), ("pressure", 1e-3), ("k", 1e-8), ("eps", 1e-8))}
         else:
             self._factor = dict.fromkeys(("momentum", "pressure", "k", "eps"), self.sec.factor)
+        # the coupled cross-flow system (3n: u_z and u_y together, then p), lagged the same way
+        self._coupled_factor = splu
+        if REUSE_FACTORISATION and REUSE_COUPLED_FACTORISATION:
+            self._coupled_factor = LaggedSparseLU((2 * self.sec.n, self.sec.n), floor=1e-3).factor
 
     # -------------------------------------------------------------------- checks
     def check(self, name, values, positive=False):
@@ -511,7 +519,8 @@ class _StationSolver:
         return uz, uy, p, flux
 
     def _cross_flow_coupled(self, st, lu, diag_m, aPN, aNP, bz, by, fn, axial_part, d):
-        """Cross-flow momentum and continuity solved together (direct LU of the 3n system).
+        """Cross-flow momentum and continuity solved together (the 3n system by SuperLU, with the
+        factorisation of an earlier outer iteration's matrix, refined: rans.linalg.LaggedSparseLU).
 
         Momentum:   M u_z - A R_z(g) = b_z,  M u_y - A R_y(g) = b_y,   g = -(p_N - p_P)/delta + f.n
         Continuity: sum_f rho S [ interp(u - d R(g)) . n + d_f g ] = -rho A d(u_x)/dx,  d = A/a_P
@@ -537,7 +546,7 @@ class _StationSolver:
         if axial_part is not None:
             rc = rc - axial_part
         big = sp.bmat([[M, None, Gz], [None, M, Gy], [Cz, Cy, Cp]], format="csc")
-        sol = splu(big).solve(np.concatenate([rz, ry, rc]))
+        sol = self._coupled_factor(big).solve(np.concatenate([rz, ry, rc]))
         n = sec.n
         uz, uy, p = sol[:n], sol[n:2 * n], sol[2 * n:]
         p = p - (A @ p) / self.area_total
