@@ -145,6 +145,12 @@ COLLISION_MOMENTUM_AHEAD = 10.0
 #: Weight of the newest pass in the collision statistics' mean velocity and spin (at least;
 #: the rest of the statistics take the case's α): a numerical choice.
 STATISTICS_MEAN_WEIGHT = 0.5
+#: Passes in the running mean of a cell's number density that the returned partner momentum's
+#: integral control divides by (CouplingLoop._next_statistics): long enough that the reference
+#: hardly moves with the last passes' noise (which would leave a small net force where a cell's
+#: mass and its collision rate per unit mass fluctuate together), short enough to forget the
+#: loadings of the first passes (a cell that fills or empties as the flow develops).
+STATS_REFERENCE_PASSES = 20
 #: Apply the pass's part of the relaxed momentum source linearised in the gas velocity,
 #: α [S_pass + β (U_ref − U)] (module docstring, "Linearised drag"); False: the explicit
 #: relaxed source.
@@ -539,9 +545,10 @@ class CouplingLoop:
         # referred to) and epsilon (C_eps3 (eps/k) S_k as applied in the last gas solve: output only)
         self.sources = None
         self.stats = None
-        # per cell: sum and count of the number densities of the collisional passes' statistics
-        # (the reference mass of the returned partner momentum's integral control)
-        self.stats_n_sum = None
+        # per cell: the reference number density of the returned partner momentum's integral
+        # control (a running mean of the collisional passes' statistics, STATS_REFERENCE_PASSES)
+        # and the number of passes in it
+        self.stats_n_ref = None
         self.stats_n_count = None
         self.window = None  # running sums (total, var, cov) of the final passes' samples
         self.window_n = 0
@@ -614,17 +621,18 @@ class CouplingLoop:
         from particles.layout import CS_N, CS_OK
 
         if self.stats is None or not self.two_way or self.pass_index <= 2:
-            self.stats_n_sum = np.where(new[:, CS_OK] > 0, new[:, CS_N], 0.0)
+            self.stats_n_ref = np.where(new[:, CS_OK] > 0, new[:, CS_N], 0.0)
             self.stats_n_count = (new[:, CS_OK] > 0).astype(float)
             return new
-        if self.stats_n_sum is None:  # resumed from a checkpoint without them: start from the statistics
-            self.stats_n_sum = np.where(self.stats[:, CS_OK] > 0, self.stats[:, CS_N], 0.0)
+        if self.stats_n_ref is None:  # resumed from a checkpoint without them: start from the statistics
+            self.stats_n_ref = np.where(self.stats[:, CS_OK] > 0, self.stats[:, CS_N], 0.0)
             self.stats_n_count = (self.stats[:, CS_OK] > 0).astype(float)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            n_ref = np.where(self.stats_n_count > 0, self.stats_n_sum / self.stats_n_count, np.nan)
+        n_ref = np.where(self.stats_n_count > 0, self.stats_n_ref, np.nan)
         ok = new[:, CS_OK] > 0
-        self.stats_n_sum = self.stats_n_sum + np.where(ok, new[:, CS_N], 0.0)
         self.stats_n_count = self.stats_n_count + ok
+        # the mean of the passes so far, then an exponential window of STATS_REFERENCE_PASSES
+        lam = np.where(ok, 1.0 / np.minimum(np.maximum(self.stats_n_count, 1.0), STATS_REFERENCE_PASSES), 0.0)
+        self.stats_n_ref = np.where(ok, (1.0 - lam) * self.stats_n_ref + lam * new[:, CS_N], self.stats_n_ref)
         return _relax_statistics(self.stats, new, self.statistics_weight(), n_ref)
 
     def _gas_sources(self, s):
@@ -968,8 +976,8 @@ class CouplingLoop:
                 arrays[f"src_{k}"] = v
         if self.stats is not None:
             arrays["stats"] = self.stats
-        if self.stats_n_sum is not None:
-            arrays["stats_n_sum"], arrays["stats_n_count"] = self.stats_n_sum, self.stats_n_count
+        if self.stats_n_ref is not None:
+            arrays["stats_n_ref"], arrays["stats_n_count"] = self.stats_n_ref, self.stats_n_count
         if self.window is not None:
             for i, v in enumerate(self.window):
                 arrays[f"window_{i}"] = v
@@ -1012,7 +1020,11 @@ class CouplingLoop:
         if "src_momentum" in data:
             self.sources = {k[4:]: data[k] for k in data if k.startswith("src_")}
         self.stats = data.get("stats")
-        self.stats_n_sum, self.stats_n_count = data.get("stats_n_sum"), data.get("stats_n_count")
+        self.stats_n_ref, self.stats_n_count = data.get("stats_n_ref"), data.get("stats_n_count")
+        if self.stats_n_ref is None and self.stats is not None and self.physics.partner_momentum == "returned":
+            self._tell(f"{self.checkpoint}: written before the returned partner momentum kept its reference "
+                       "mass per cell; it starts from the checkpoint's statistics, so the passes from here "
+                       "differ from those of an uninterrupted run")
         if self.stats is not None:
             if self.stats.shape[1] == CS_ST:  # a checkpoint from before the Stokes-number column
                 st = particles.cell_stokes(self.stats, self.gas, self.spec)
@@ -1096,7 +1108,8 @@ def _relax_statistics(old, new, alpha, n_ref=None):
         # controller on the cell's net collision force: the pass ran with a_old and left the net
         # force F_net = W (a_old − a_new) (a_new = −F_jump/W of that pass, W its particle mass in
         # the cell); a moves by −α F_net / W_ref, W_ref the mean mass of the earlier passes
-        # (n_ref, the mean of their number densities; the relaxed one where it is not given), so
+        # (n_ref, the mean of their number densities over a window of STATS_REFERENCE_PASSES passes;
+        # the previous statistics' where it is not given), so
         # a only stops drifting where the net force vanishes in the mean.  The plain blend
         # (1 − α) a_old + α a_new divides by each pass's own W instead and settles where the mean
         # of F/W vanishes, which leaves a net force wherever a cell's mass and its collision rate
