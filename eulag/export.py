@@ -11,13 +11,9 @@ x along the axis, y vertical up, z horizontal, y = r sin(theta), z = r cos(theta
 sector faces are straight chords between corners (VTK cells are linear), so the cell
 volumes of the file are those of a polygonal pipe: short of the exact annular sectors by
 about (2 pi / nt)^2 / 6 in relative terms (0.4 % at 40 sectors); the field values are the
-cell means of the solver, unchanged.
-
-* The innermost ring's cells are wedges (VTK_WEDGE) sharing one point on the axis per axial
-  face; the other rings are hexahedra (VTK_HEXAHEDRON). Every cell has a positive volume.
-* The theta seam is closed: the sectors k = nt - 1 and k = 0 share their points at
-  theta = 2 pi = 0 (no duplicated column of points, so no crack in surfaces, contours or
-  gradients across the seam).
+cell means of the solver, unchanged. Every cell has a positive volume. How the axis and
+the theta seam are represented depends on the format (below): the unstructured grid shares
+points there, the structured grid repeats them.
 
 Cell data: every variable whose dimensions are (x, r, theta), in any order, under its own
 name (float64; NaN kept, e.g. particle statistics in cells no particle reached); the
@@ -39,7 +35,9 @@ Formats, chosen by the target's suffix:
   the dataset is number i + nx (k + nt j)). The theta
   seam is closed geometrically: the last column of points (theta = 2 pi) holds exactly the
   coordinates of the first, so the sectors k = nt - 1 and k = 0 touch without a gap (a
-  structured grid cannot share the point ids; ParaView's "Merge Points" joins them). The
+  structured grid cannot share the point ids, so point-data filters such as cell-to-point
+  interpolation see a seam unless the points are merged, e.g. by ParaView's "Merge Points"
+  or "Clean to Grid"). The
   ring-0 cells are hexahedra whose four inner corners lie on the axis (degenerate: they have
   the wedge's volume).
 * ``.vtu``: VTK XML *unstructured* grid, written with meshio (pure Python, a dependency):

@@ -37,7 +37,8 @@ __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged
 #: The models a case can name with its top-level ``model`` key, and the module that runs each.
 MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
 #: The dense-phase models' entry points: (module, validate(dict), run(dict, out, resume=, progress=)).
-#: Each module also defines ``same_case(attrs, dict)`` and ``checkpoint_path(out)``.
+#: Each module also defines ``same_case(attrs, dict)``, ``checkpoint_path(out)`` and
+#: ``checkpoint_problem(path, dict)``.
 _DENSE = {"dem-darcy": ("eulag.slug", "validate_slug_case", "run_slug"),
           "two-fluid": ("eulag.two_fluid", "validate_two_fluid_case", "run_two_fluid")}
 
@@ -219,16 +220,17 @@ def checkpoint_state(ckpt: str | Path, case):
     """The checkpoint ``ckpt`` of a coupled run as ``case`` would resume it: ``(meta, residual
     history, None)`` when it can (``coupling.checkpoint_problem``: its stored case compared as
     records are), ``(None, None, why)`` when it cannot (unreadable, another case, ...), and None
-    when there is no such file.  A dense-phase model checks its own checkpoint when it resumes:
-    ``({}, empty, None)``.  The file is read once (a run beside the caller may finish and delete
-    it)."""
+    when there is no such file.  A dense-phase model's checkpoint is checked by its module
+    (``checkpoint_problem``), and gives ``({}, empty, None)`` when it can be resumed.  The file
+    is read once (a run beside the caller may finish and delete it)."""
     import numpy as np
 
     ckpt = Path(ckpt)
     if not ckpt.is_file():
         return None
     if isinstance(case, ModelCase):
-        return {}, np.zeros(0), None
+        problem = getattr(_model_module(case.model), "checkpoint_problem")(ckpt, case.data)
+        return ({}, np.zeros(0), None) if problem is None else (None, None, problem)
     from eulag import coupling
 
     try:

@@ -493,6 +493,26 @@ def checkpoint_path(out) -> Path:
     return out.with_name(out.name + ".checkpoint")
 
 
+def _checkpoint_key(c: dict) -> str:
+    """The identity a checkpoint stores: the resolved case without ``numerics.end_time_s`` (a
+    run may be continued to a later end)."""
+    same = json.loads(json.dumps(c))
+    same.get("numerics", {}).pop("end_time_s", None)
+    return json.dumps(same, sort_keys=True)
+
+
+def checkpoint_problem(ckpt, case: dict):
+    """Why the checkpoint ``ckpt`` cannot be resumed as ``case`` (None: it can)."""
+    try:
+        with np.load(Path(ckpt), allow_pickle=False) as z:
+            key = str(z["case_json"]) if "case_json" in z.files else None
+    except Exception as exc:  # noqa: BLE001 - unreadable for whatever reason
+        return f"cannot be read ({' '.join(str(exc).split())})"
+    if key is None:
+        return "checkpoint written without its case, which cannot be checked"
+    return None if key == _checkpoint_key(validate_slug_case(case)) else "checkpoint of a different case"
+
+
 def same_case(attrs: dict, case: dict) -> bool:
     """Whether a dataset's attributes ``attrs`` are those of a result of ``case`` (its resolved
     case, stored as the ``case`` attribute)."""
@@ -518,8 +538,11 @@ def run_slug(case: dict, out, resume=False, progress=True):
     if ckpt is None:
         pass
     elif resume and ckpt.exists():
+        problem = checkpoint_problem(ckpt, case)
+        if problem is not None:
+            raise ValueError(f"--resume: {ckpt}: {problem}; remove it or run without --resume")
         with np.load(ckpt, allow_pickle=False) as z:
-            sim.load({k: z[k] for k in z.files})
+            sim.load({k: z[k] for k in z.files if k != "case_json"})
     elif ckpt.exists():
         ckpt.unlink()
     t_start = time.time()
@@ -529,7 +552,7 @@ def run_slug(case: dict, out, resume=False, progress=True):
         if sim.gas_step % sim.n_out == 0:
             sim.record()
         if ckpt is not None and sim.gas_step % sim.n_ckpt == 0 and sim.gas_step < sim.n_gas_total:
-            _atomic_savez(ckpt, sim.state())
+            _atomic_savez(ckpt, {**sim.state(), "case_json": np.array(_checkpoint_key(c))})
         if progress and time.time() - last_report > 10:
             last_report = time.time()
             r = sim.rec
@@ -656,7 +679,7 @@ def dataset_from_checkpoint(case: dict, checkpoint):
     running or interrupted run without disturbing it."""
     sim = _Simulation(validate_slug_case(case))
     with np.load(Path(checkpoint), allow_pickle=False) as z:
-        sim.load({k: z[k] for k in z.files})
+        sim.load({k: z[k] for k in z.files if k != "case_json"})
     ds = sim.dataset()
     ds.attrs["partial"] = f"from checkpoint at t = {sim.gas_step * sim.gas_dt:.4g} s"
     return ds

@@ -77,7 +77,7 @@ def plan_sweep(paths, output_dir=".", parcels=None):
 
     Raises :class:`SweepInputError` (nothing run, nothing written except ``output_dir``).
     """
-    from eulag.runs import RunError, dataset_state, load_case
+    from eulag.runs import RunError, checkpoint_path, dataset_state, load_case
 
     if not paths:
         raise SweepInputError("no case files given")
@@ -107,7 +107,7 @@ def plan_sweep(paths, output_dir=".", parcels=None):
             msg = str(exc).replace("--resume: ", "")
             raise SweepInputError(f"case {e.name} ({e.path}): {msg}") from None
         if not e.finished:
-            problem = _checkpoint_problem(Path(str(e.output) + ".checkpoint"), e.case)
+            problem = _checkpoint_problem(checkpoint_path(e.output, e.case), e.case)
             if problem:
                 raise SweepInputError(f"case {e.name} ({e.path}): {problem}")
     try:

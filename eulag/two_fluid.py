@@ -249,6 +249,16 @@ def dataset_key(case: dict) -> str:
     return json.dumps(same, sort_keys=True, default=str)
 
 
+def checkpoint_problem(ckpt, case: dict):
+    """Why the checkpoint ``ckpt`` cannot be resumed as ``case`` (None: it can)."""
+    try:
+        with np.load(Path(ckpt)) as d:
+            key = str(d["case_json"])
+    except Exception as exc:  # noqa: BLE001 - unreadable for whatever reason
+        return f"cannot be read ({' '.join(str(exc).split())})"
+    return None if key == dataset_key(case) else "checkpoint of a different case"
+
+
 def same_case(attrs: dict, case: dict) -> bool:
     """Whether a dataset's attributes ``attrs`` are those of a result of ``case``."""
     try:

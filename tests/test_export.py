@@ -159,6 +159,7 @@ def _read_vts(path):
 
 
 def test_vts_structured_grid_reads_back(exported, tmp_path):
+    pytest.importorskip("vtkmodules")
     mesh, field, written, _ = exported
     target = export_vts(written.with_suffix(".nc"), tmp_path / "tiny.vts")
     assert target == tmp_path / "tiny.vts" and target.is_file()

@@ -125,6 +125,36 @@ def test_resume_after_kill_is_bit_identical(tmp_path, monkeypatch):
         assert np.array_equal(v.values, resumed[name].values, equal_nan=True), name
 
 
+def test_resume_refuses_a_checkpoint_of_another_case(tmp_path, monkeypatch):
+    """A checkpoint stores its case: --resume with an edited case stops with one line instead of
+    continuing the other case's grains (a later end time is the same case, continued)."""
+    from eulag import runs
+
+    case = _short_periodic(end=0.03, ckpt=0.01)
+    real = slug._atomic_savez
+
+    def killed_after_first_checkpoint(path, state):
+        real(path, state)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(slug, "_atomic_savez", killed_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        slug.run_slug(case, tmp_path / "c.nc", progress=False)
+    monkeypatch.setattr(slug, "_atomic_savez", real)
+    ckpt = tmp_path / "c.nc.checkpoint"
+    assert slug.checkpoint_problem(ckpt, case) is None
+    longer = _short_periodic(end=0.04, ckpt=0.01)
+    assert slug.checkpoint_problem(ckpt, longer) is None
+    other = _short_periodic(end=0.03, ckpt=0.01)
+    other["grains"]["friction"] = 0.3
+    assert slug.checkpoint_problem(ckpt, other) == "checkpoint of a different case"
+    with pytest.raises(ValueError, match="checkpoint of a different case"):
+        slug.run_slug(other, tmp_path / "c.nc", resume=True, progress=False)
+    mc = runs.ModelCase("dem-darcy", "c", other)
+    assert runs.checkpoint_state(ckpt, mc)[2] == "checkpoint of a different case"
+    assert runs.checkpoint_state(ckpt, runs.ModelCase("dem-darcy", "c", case))[2] is None
+
+
 def test_coupled_loop_one_and_two_threads_bit_identical(tmp_path):
     """The prange kernels (numerics.parallel = true) on 1 and 2 threads and the serial kernels
     give the same dataset bit for bit."""

@@ -106,3 +106,23 @@ def test_a_failing_run_is_one_line_and_the_study_goes_on(tmp_path, monkeypatch, 
     assert "\n" not in failed[0]["converged"]
     assert (out / "ding_qs0.8__berzi__6x12.failed.json").is_file()
     assert [r["model"] for r in rows(out / "ding-friction.csv")] == ["berzi"]
+
+
+def test_resume_replaces_a_dataset_of_another_case(tmp_path, capsys):
+    """--resume beside a dataset of another case (the case file was edited) runs the case again
+    and replaces it, instead of recording a failure."""
+    import xarray as xr
+
+    out = tmp_path / "ding"
+    assert study("--quick", "--quiet", "--only", "berzi", "-o", out) == 0
+    capsys.readouterr()
+    nc = out / "ding_qs0.8__berzi__8x16.nc"
+    with xr.open_dataset(nc) as ds:
+        ds = ds.load()
+    ds.attrs["case_json"] = ds.attrs["case_json"].replace('"berzi"', '"dartevelle"')
+    ds.to_netcdf(nc)
+    assert study("--quick", "--resume", "--only", "berzi", "-o", out) == 0
+    assert "holds another case or cannot be read; it is replaced" in capsys.readouterr().err
+    assert not (out / "ding_qs0.8__berzi__8x16.failed.json").exists()
+    with xr.open_dataset(nc) as ds:
+        assert '"berzi"' in ds.attrs["case_json"]

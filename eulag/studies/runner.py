@@ -213,6 +213,12 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             ds = opened
             reused = True
             _log(args, f"  {label}: {out} exists (same case), not run again")
+        elif not report and (opened is None or not _same_case(opened.attrs, case)):
+            # unreadable or of another case: this study's run replaces it (a resume never
+            # takes it for this case, and it would make the run's layer refuse the output)
+            _log(args, f"  {label}: {out} holds another case or cannot be read; it is replaced")
+            out.unlink(missing_ok=True)
+            record.unlink(missing_ok=True)
     if ds is None and resume and (report or not out.is_file()):  # (--report: also beside an unusable dataset)
         kept = read_record(record, case)
         if kept is not None:
@@ -247,7 +253,9 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
         _log(args, f"  {label}: running ({_describe_numerics(case)})")
         t0 = time.perf_counter()
         try:
-            ds = runs.execute(case, out, resume=resume, progress=_progress_printer(args, name, history),
+            quiet_model = not isinstance(case, Case) and getattr(args, "quiet", False)
+            ds = runs.execute(case, out, resume=resume,
+                              progress=None if quiet_model else _progress_printer(args, name, history),
                               notify=lambda text: _log(args, f"    {name}: {text}")).dataset
         except (runs.RunError, FloatingPointError) as exc:
             kind = "failed"
@@ -276,7 +284,8 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
                                           "relaxation": rec.relaxation, **hist}, default=str))
             _log(args, f"  {label}: {kind}: {msg}")
             return rec
-        ckpt.unlink(missing_ok=True)  # the dataset holds everything; the checkpoint is no longer needed
+        if isinstance(case, Case):  # the dataset holds everything; the checkpoint is no longer needed
+            ckpt.unlink(missing_ok=True)  # (a dense-phase model keeps or removes its own)
 
     rec = _record_from_dataset(name, case, out, ds)
     rec.reused = reused
