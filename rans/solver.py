@@ -145,7 +145,9 @@ class GasField:
     coupled cross-flow step; station_converged (nx,) whether each station reached the
     tolerance; station_change (nx, 2) the last outer iteration's largest change of the returned
     state, of the velocity (/ U_b) and of k and epsilon (relative): how far an unconverged
-    station is from its tolerance, and in which equations.
+    station is from its tolerance, and in which equations; station_flux (nx, n_faces) the
+    cross-section face mass fluxes [kg s-1 m-1] of each station (developing mode; for a warm
+    start of a later solve, ``solve(initial=...)``).
     """
 
     mesh: PipeMesh
@@ -170,6 +172,7 @@ class GasField:
     station_coupled: np.ndarray = field(default=None, repr=False)
     station_converged: np.ndarray = field(default=None, repr=False)
     station_change: np.ndarray = field(default=None, repr=False)
+    station_flux: np.ndarray = field(default=None, repr=False)
 
     @property
     def nut(self):
@@ -640,7 +643,10 @@ def solve(
     tol: convergence on the max normalised change of an outer iteration (periodic mode);
     station_tol (developing; default tol): same, per station; station_iterations: (min, max)
     outer iterations per station.  pseudo_step [m]: pseudo axial step of the periodic mode
-    (default 4 D).  initial: a :class:`GasField` to start from (periodic mode).
+    (default 4 D).  initial: a :class:`GasField` on the same mesh to start from: the periodic
+    mode iterates from it; the developing mode starts each station's outer iteration from its
+    state at that station instead of the upstream station's (a warm start from an earlier solve
+    with slightly different sources, e.g. the previous coupling pass; _march_station).
     turbulence_relaxation, momentum_relaxation: implicit under-relaxation of k and epsilon,
     and of the momentum equations (the march uses the first only, and retries a diverging
     station with more of both: _march_station, ``GasField.station_relaxation``).
@@ -751,8 +757,11 @@ def solve(
             # the march carries the inlet's discrete mass flow (a mismatch would be an
             # incompatible continuity source at the first station)
             solver.Ub = float(sec.area @ st.ux) / sec.area.sum()
+        if initial is not None and tuple(np.shape(initial.ux)) != tuple(mesh.shape):
+            raise ValueError(f"initial field has shape {np.shape(initial.ux)}, the mesh needs {mesh.shape}")
         prev1 = st.copy()
         prev2 = None
+        fluxes = np.empty((nx, sec.nf))
         x_prev, h_prev = 0.0, None
         for i in range(nx):
             solver.station = i
@@ -775,12 +784,14 @@ def solve(
                         hist[v] = np.where(be, p1, hist[v])
                         hist[key] = np.where(be, 1.0, c0)
             src = _source_slices(sources, i, n)
+            start = None if initial is None else _warm_state(initial, i, sec, gas.density)
             st, ok, iters[i], station_relax[i], station_coupled[i], station_change[i] = _march_station(
                 solver, prev1, hist, c0, h, src, laminar, turbulence_relaxation, station_iterations, stol,
-                residuals)
+                residuals, start)
             station_ok[i] = ok
             converged &= ok
             _store(out, G, tau, i, st)
+            fluxes[i] = st.flux
             limited[i] = solver.limited
             floored[i] = solver.floored
             prev2, prev1 = prev1, st
@@ -821,13 +832,24 @@ def solve(
         station_coupled=station_coupled,
         station_converged=station_ok,
         station_change=station_change,
+        station_flux=fluxes if mesh.mode == "developing" else None,
     )
 
 
-def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_iterations, stol, residuals):
+def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_iterations, stol, residuals,
+                   start=None):
     """Iterate one station of the march to ``stol``: returns (state, converged, iterations,
     relaxation used, whether the coupled cross-flow step was used, the last iteration's
     (velocity, k-eps) change of the state, _StationSolver.last_change).
+
+    The first attempt iterates from ``start`` (a warm start: the station's state in an earlier
+    solve, ``solve(initial=...)``) when given, else from the upstream state ``prev``; the
+    retries below always from ``prev``.  The convergence test is the same either way, so the
+    converged state is the station's discrete fixed point to the tolerance, whichever state the
+    iteration starts from, except where the contraction is so slow that a change below the
+    tolerance does not bound the error, or where the attempt stalls from one start and not
+    from the other and the coupled step's fixed point is taken (strong sinks, scene h:
+    docs/numerics.md, "Gas solver").
 
     The outer iteration lags mu_t, and the march's SIMPLEC cross-flow step is one pressure
     correction per iteration.  Where strong particle sinks have all but laminarised the flow
@@ -883,7 +905,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
         for a, (r, m, cp) in enumerate(attempts):
             if best is not None and m != alpha_u:
                 break  # a stalled (not diverged) station is not retried with momentum relaxation
-            st = prev.copy()
+            st = (start if a == 0 and start is not None else prev).copy()
             solver.alpha_u, solver.coupled = m, cp
             tol = stol * min(r, m)
             cap = hi if (r, m) == (relax, alpha_u) else int(hi * min(1.0 / min(r, m), 4.0))
@@ -990,6 +1012,28 @@ def _state_from_field(f, i):
     return _State(ux=f.ux[i].ravel().copy(), uy=f.uy[i].ravel().copy(), uz=f.uz[i].ravel().copy(),
                   p=f.p[i].ravel().copy(), k=f.k[i].ravel().copy(), eps=f.epsilon[i].ravel().copy(),
                   flux=f.face_flux.copy() if f.face_flux is not None else np.zeros(sec.nf))
+
+
+def _warm_state(f, i, sec, rho):
+    """Station ``i`` of the field ``f`` as the starting state of that station's outer iteration
+    (developing mode): velocities, k and epsilon as stored; the cross-section pressure without
+    its section mean (GasField.p adds the axial level); the cross-section face mass fluxes of
+    the station (GasField.station_flux) or, for a field without them (e.g. one read back from a
+    coupling checkpoint, which keeps the last station's only), those of the interpolated
+    velocities: the first outer iteration replaces them by the momentum-interpolated ones (from
+    the exact field the stations then need ~5-12 iterations instead of 2)."""
+    A = sec.area
+    p = np.asarray(f.p[i], dtype=float).ravel()
+    p = p - (A @ p) / A.sum()
+    uz = np.asarray(f.uz[i], dtype=float).ravel().copy()
+    uy = np.asarray(f.uy[i], dtype=float).ravel().copy()
+    if getattr(f, "station_flux", None) is not None:
+        flux = np.asarray(f.station_flux[i], dtype=float).copy()
+    else:
+        flux = rho * sec.S * (sec.interp(uz) * sec.nz + sec.interp(uy) * sec.ny)
+    return _State(ux=np.asarray(f.ux[i], dtype=float).ravel().copy(), uy=uy, uz=uz, p=p,
+                  k=np.asarray(f.k[i], dtype=float).ravel().copy(),
+                  eps=np.asarray(f.epsilon[i], dtype=float).ravel().copy(), flux=flux)
 
 
 class _NoBar:

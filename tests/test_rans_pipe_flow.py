@@ -611,3 +611,58 @@ def test_pinned_continuity_block_is_the_former_one_to_the_bit(seed):
     assert np.array_equal(new.indptr, old.indptr)
     assert np.array_equal(new.indices, old.indices)
     assert np.array_equal(new.data, old.data)
+
+
+def _sinks(m, ref, scale):
+    """Particle-like sources of a developing solve: braking momentum with cross flow, and a
+    k sink (referred to ref's k, with the C_eps3 closure)."""
+    s = _particle_like_momentum_source(m, ref, 20.0 * scale)
+    s.k[...] = -scale * RHO * ref.epsilon
+    s.k_reference, s.c_eps3 = ref.k, 1.8
+    return s
+
+
+@pytest.fixture(scope="module")
+def warm_start_case():
+    U, tol = 10.0, 1e-8
+    m = PipeMesh.build(D, 0.3, "developing", axial_cells=20, radial_cells=8, azimuthal_cells=12,
+                       bulk_velocity=U, density=RHO, viscosity=MU)
+    ref = solve(m, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, tol=1e-9)
+    a = solve(m, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, sources=_sinks(m, ref, 1.0), tol=tol)
+    return m, ref, a, U, tol
+
+
+def test_a_warm_started_march_converges_to_the_cold_solution(warm_start_case):
+    """solve(initial=...) in the developing mode: each station starts from the earlier field's
+    state there; with sources 2 % stronger than that field's, the march converges to the field
+    of a cold solve (from the upstream states) within the tolerance, not to the earlier field
+    (which differs by ~1e5 tolerances)."""
+    m, ref, a, U, tol = warm_start_case
+    s = _sinks(m, ref, 1.02)
+    cold = solve(m, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, sources=s, tol=tol)
+    warm = solve(m, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, sources=s, tol=tol, initial=a)
+    assert cold.converged and warm.converged
+    assert np.abs(a.ux - cold.ux).max() > 1e4 * tol * U  # the earlier field is far from it
+    for v in ("ux", "uy", "uz"):
+        np.testing.assert_allclose(getattr(warm, v), getattr(cold, v), rtol=0, atol=2 * tol * U, err_msg=v)
+    # k and eps contract more slowly: a converged station is within ~10 of its last changes
+    np.testing.assert_allclose(warm.k, cold.k, rtol=20 * tol)
+    np.testing.assert_allclose(warm.epsilon, cold.epsilon, rtol=20 * tol)
+    np.testing.assert_allclose(warm.pressure_gradient, cold.pressure_gradient, rtol=5 * tol)
+    assert warm.station_flux.shape == (m.nx, m.geometry().nf)
+
+
+def test_a_march_warm_started_from_its_own_solution_stops_after_two_iterations(warm_start_case):
+    """Started from the converged field of the same sources (its velocities, pressure, k, eps
+    and cross-section face fluxes at each station), every station meets the tolerance at once:
+    the minimum of two outer iterations."""
+    m, ref, a, U, tol = warm_start_case
+    again = solve(m, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, sources=_sinks(m, ref, 1.0), tol=tol, initial=a)
+    assert again.converged
+    assert again.station_iterations.max() <= 2, again.station_iterations
+    np.testing.assert_allclose(again.ux, a.ux, rtol=0, atol=tol * U)
+    np.testing.assert_allclose(again.k, a.k, rtol=10 * tol)
+    with pytest.raises(ValueError, match="initial field has shape"):
+        coarse = PipeMesh.build(D, 0.3, "developing", axial_cells=10, radial_cells=8, azimuthal_cells=12,
+                                bulk_velocity=U, density=RHO, viscosity=MU)
+        solve(coarse, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, tol=tol, initial=a)

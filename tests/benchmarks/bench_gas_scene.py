@@ -2,6 +2,7 @@
 
     python tests/benchmarks/bench_gas_scene.py [--scene-checkpoint PATH] [--base-checkpoint PATH]
                          [--passes 2] [--parcels 3000] [--repeat 1] [--direct-coupled]
+                         [--warm-from PATH]
 
 Each case's gas solve (``rans.solve`` with the coupling loop's settings, at the case's own grid:
 the studies' 400 x 20 x 40 cells for both shipped files) is timed on relaxed particle sources:
@@ -21,6 +22,14 @@ cross-flow step, outer iterations, -dp/dx, whether it converged, and the factori
 of the coupled step's lagged SuperLU (``rans.linalg.LaggedSparseLU``).  ``--direct-coupled``
 factorises every coupled-step matrix (the former path), for comparison; timings on a shared
 machine are noisy: run both, interleaved, several times.
+
+``--warm-from PATH`` (with ``--only`` and that case's checkpoint): the checkpoint of the pass
+before.  Its sources are solved first (cold, untimed: the converged field with the face fluxes
+of every station, as the loop would hold it), then each repetition times a cold solve and a
+solve warm-started from that field (``rans.solve(initial=...)``), and prints both solves'
+outer iterations and their largest difference per field, relative to the field's maximum, over
+all stations and over the stations upstream of the first one where they part by more than
+1e-5 (which, with its retries, is printed).
 """
 
 from __future__ import annotations
@@ -69,14 +78,56 @@ def _sources_from_passes(path, passes, parcels):
         f"{times} s), relaxation {loop.alpha:g}")
 
 
-def _solve(case, sources):
+def _solve(case, sources, initial=None):
     n, g = case.numerics, case.gas
     mesh = build_mesh(case)
     gas = rans.GasProperties(density=g.density, viscosity=g.viscosity)
     t = time.perf_counter()
     f = rans.solve(mesh, gas, g.bulk_velocity, g.inlet_k, g.inlet_epsilon, sources, tol=n.gas_tolerance,
-                   max_iterations=n.gas_max_iterations)
+                   max_iterations=n.gas_max_iterations, initial=initial)
     return f, time.perf_counter() - t
+
+
+def _line(what, f, t):
+    return (f"  {what}: {t:.1f} s, converged {f.converged} ({int((~f.station_converged).sum())} stations not), "
+            f"coupled step at {int(f.station_coupled.sum())} stations, iterations {int(f.station_iterations.sum())} "
+            f"(max {int(f.station_iterations.max())} per station), -dp/dx {f.pressure_gradient.mean():.4f} Pa/m")
+
+
+def bench_warm(name, case, sources, origin, previous, repeat):
+    """Cold against warm-started solves of ``sources``, warm from the converged solve of ``previous``."""
+    _, prev_src, prev_origin = _sources_from_checkpoint(previous)
+    print(f"{name}: sources from {origin}; warm start from the solve on {prev_origin}")
+    start, t0 = _solve(case, prev_src)
+    print(_line("previous pass's sources (cold, the warm start)", start, t0))
+    for r in range(repeat):
+        cold, tc = _solve(case, sources)
+        print(_line(f"[{r + 1}/{repeat}] cold", cold, tc))
+        warm, tw = _solve(case, sources, initial=start)
+        print(_line(f"[{r + 1}/{repeat}] warm", warm, tw))
+    _compare(cold, warm)
+
+
+def _compare(cold, warm):
+    """Largest warm - cold difference per field, relative to the field's maximum: over all stations,
+    and over those upstream of the first station where u_x, k, epsilon or -dp/dx part by more
+    than 1e-4 of their maximum (the cross flow, ~1e-3 U_b, is held to the tolerance on U_b only)."""
+    per = {}
+    for v in ("ux", "uy", "uz", "p", "k", "epsilon", "pressure_gradient"):
+        a, b = np.asarray(getattr(cold, v)), np.asarray(getattr(warm, v))
+        per[v] = np.abs(a - b).reshape(a.shape[0], -1).max(axis=1) / np.abs(a).max()
+    part = np.flatnonzero(np.max([per[v] for v in ("ux", "k", "epsilon", "pressure_gradient")], axis=0) > 1e-4)
+    nx = per["ux"].size
+    i0 = int(part[0]) if part.size else nx
+    print(f"  warm - cold, max |difference| / max |field|: all stations / stations before {i0}")
+    print("   " + ", ".join(f"{v} {d.max():.2g} / {d[:i0].max() if i0 else 0.0:.2g}" for v, d in per.items()))
+    if part.size:
+        x = cold.mesh.x
+        c, w = cold, warm
+        print(f"  they part at station {i0} (x = {x[i0]:.3f} m): iterations cold {c.station_iterations[i0]} warm "
+              f"{w.station_iterations[i0]}, coupled step {bool(c.station_coupled[i0])}/{bool(w.station_coupled[i0])}, "
+              f"converged {bool(c.station_converged[i0])}/{bool(w.station_converged[i0])}; the fields differ by "
+              f"more than 1e-4 at {part.size} of {nx} stations, over x = {x[part[0]]:.3f}-{x[part[-1]]:.3f} m")
 
 
 class _CountedCoupled:
@@ -136,14 +187,23 @@ def main(argv=None):
                     help="factorise every coupled-step matrix (no lagged SuperLU), for comparison")
     ap.add_argument("--only", choices=("base", "scene"), help="one of the two cases")
     ap.add_argument("--save", type=Path, help="write the last solve's fields to SAVE-<base|scene>.npz")
+    ap.add_argument("--warm-from", type=Path,
+                    help="checkpoint of the pass before (with --only and that case's checkpoint): cold against "
+                         "warm-started solves")
     a = ap.parse_args(argv)
     solver.REUSE_COUPLED_FACTORISATION = not a.direct_coupled
+    if a.warm_from is not None and (a.only is None or (a.scene_checkpoint if a.only == "scene" else a.base_checkpoint)
+                                    is None):
+        ap.error("--warm-from needs --only and that case's checkpoint")
     print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}")
     for name, path, ckpt in (("base case", BASE, a.base_checkpoint), ("scene h", SCENE_H, a.scene_checkpoint)):
         if a.only and not name.startswith(a.only):
             continue
         case, src, origin = (_sources_from_checkpoint(ckpt) if ckpt is not None
                              else _sources_from_passes(path, a.passes, a.parcels))
+        if a.warm_from is not None:
+            bench_warm(name, case, src, origin, a.warm_from, a.repeat)
+            continue
         save = None if a.save is None else a.save.with_name(f"{a.save.stem}-{name.split()[0]}.npz")
         bench(name, case, src, origin, a.repeat, save)
 
