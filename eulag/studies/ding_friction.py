@@ -43,7 +43,7 @@ import numpy as np
 from eulag.config import CASES_DIR
 
 from .report import Column, _figure, machine_info, markdown_table, write_csv
-from .runner import EXIT_FAILURE, EXIT_OK, RunRecord, _BadInput, _log, run_case
+from .runner import RunRecord, _BadInput, _finish, _log, run_case
 
 STUDY = "ding-friction"
 MODELS = ("dartevelle", "srivastava-sundaresan", "berzi")
@@ -273,15 +273,7 @@ def study_ding_friction(args, outdir: Path, t_start: float) -> int:
     sens_rows = _sensitivity_rows(plan, records)
     figures = _figures(outdir, plan, records, quick)
     _write_readme(outdir, args, rows, grid_rows, sens_rows, plan, records, figures, t_start)
-    bad = [r for r in records.values() if r.status in ("failed", "error")]
-    _log(args, f"eulag study {STUDY}: wrote {outdir / 'README.md'}")
-    if bad:
-        import sys
-
-        print(f"eulag: error: {len(bad)} of {len(records)} runs did not finish: "
-              + ", ".join(f"{r.name} ({r.status})" for r in bad) + f"; see {outdir / 'README.md'}", file=sys.stderr)
-        return EXIT_FAILURE
-    return EXIT_OK
+    return _finish(args, outdir, list(records.values()), allowed_failures=False)
 
 
 def _status(rec: RunRecord) -> str:

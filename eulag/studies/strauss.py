@@ -78,7 +78,7 @@ import numpy as np
 from eulag.config import CASES_DIR
 
 from .report import Column, _figure, machine_info, markdown_table, write_csv
-from .runner import EXIT_FAILURE, EXIT_OK, RunRecord, _BadInput, _log, run_case
+from .runner import RunRecord, _BadInput, _finish, _log, _select, run_case
 
 STUDY = "strauss"
 CASE_DIR = CASES_DIR / "slug"
@@ -352,14 +352,10 @@ def _float_list(text, option):
 def _groups(text, long):
     if not text:
         return None
-    wanted = [w.strip() for w in text.split(",") if w.strip()]
-    bad = [w for w in wanted if w not in GROUPS]
-    if bad or not wanted:
-        raise _BadInput(f"--only {text}: unknown groups {', '.join(bad) or '(none given)'}; "
-                        f"allowed: a comma-separated list of {', '.join(GROUPS)}")
+    wanted = _select(text, list(GROUPS), "groups")
     if "long" in wanted and not long:
         raise _BadInput(f"--only {text}: the long run takes hours; allowed only with --long")
-    return [g for g in GROUPS if g in wanted]
+    return wanted
 
 
 def study_strauss(args, outdir: Path, t_start: float) -> int:
@@ -382,13 +378,7 @@ def study_strauss(args, outdir: Path, t_start: float) -> int:
     rows = [_row(name, grp, info, records[name]) for name, (grp, info, case) in plan.items()]
     figures = _figures(outdir, plan, records)
     _write_readme(outdir, args, rows, plan, records, figures, t_start)
-    bad = [r for r in records.values() if r.status in ("failed", "error")]
-    _log(args, f"eulag study {STUDY}: wrote {outdir / 'README.md'}")
-    if bad:
-        print(f"eulag: error: {len(bad)} of {len(records)} runs did not finish: "
-              + ", ".join(f"{r.name} ({r.status})" for r in bad) + f"; see {outdir / 'README.md'}", file=sys.stderr)
-        return EXIT_FAILURE
-    return EXIT_OK
+    return _finish(args, outdir, list(records.values()), allowed_failures=False)
 
 
 def _status(rec: RunRecord) -> str:
