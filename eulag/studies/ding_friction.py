@@ -42,7 +42,7 @@ import numpy as np
 
 from eulag.config import CASES_DIR
 
-from .report import Column, _figure, machine_info, markdown_table, write_csv
+from .report import Column, _figure, draw_figures, machine_info, markdown_table, write_csv
 from .runner import RunRecord, _BadInput, _finish, _log, run_case
 
 STUDY = "ding-friction"
@@ -437,19 +437,8 @@ COLORS = {"dartevelle": "tab:red", "srivastava-sundaresan": "tab:green", "berzi"
 
 
 def _figures(outdir: Path, plan, records, quick: bool) -> list[Path]:
-    import sys
-
-    out = []
-    for make in (_fig_pressure_drop, _fig_sections, _fig_alpha_profiles, _fig_frictional_pressure_closures,
-                 _fig_pf_profiles, _fig_tau_profiles, _fig_profiles_qs08):
-        try:
-            p = make(outdir, plan, records)
-        except Exception as exc:  # noqa: BLE001 - a figure must not lose the table
-            print(f"eulag: warning: {make.__name__}: {type(exc).__name__}: {exc}", file=sys.stderr)
-            p = None
-        if p is not None:
-            out.append(p)
-    return out
+    return draw_figures((_fig_pressure_drop, _fig_sections, _fig_alpha_profiles, _fig_frictional_pressure_closures,
+                         _fig_pf_profiles, _fig_tau_profiles, _fig_profiles_qs08), outdir, plan, records)
 
 
 def _save(fig, path: Path) -> Path:

@@ -271,6 +271,23 @@ def _settings_text(cases: list[Case], quick: bool) -> str:
     return text
 
 
+def draw_figures(makers, *args) -> list:
+    """Call each figure maker ``make(*args)`` and collect the paths they return (None: no
+    figure); a maker that fails is one warning line on stderr, never the loss of a table."""
+    import sys
+
+    out = []
+    for make in makers:
+        try:
+            p = make(*args)
+        except Exception as exc:  # noqa: BLE001 - a figure must not lose the table
+            print(f"eulag: warning: {make.__name__}: {type(exc).__name__}: {exc}", file=sys.stderr)
+            p = None
+        if p is not None:
+            out.append(p)
+    return out
+
+
 def _figure():
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure

@@ -69,7 +69,6 @@ from __future__ import annotations
 import copy
 import math
 import os
-import sys
 import time
 from pathlib import Path
 
@@ -77,7 +76,7 @@ import numpy as np
 
 from eulag.config import CASES_DIR
 
-from .report import Column, _figure, machine_info, markdown_table, write_csv
+from .report import Column, _figure, draw_figures, machine_info, markdown_table, write_csv
 from .runner import RunRecord, _BadInput, _finish, _log, _select, run_case
 
 STUDY = "strauss"
@@ -543,15 +542,7 @@ COMPARISON_COLUMNS = [Column("quantity", "quantity"), Column("paper", "paper"), 
 
 # ---------------------------------------------------------------------------- figures
 def _figures(outdir: Path, plan, records) -> list[Path]:
-    out = []
-    for make in (_fig_curves, _fig_mass_flux, _fig_viscosity, _fig_friction):
-        try:
-            p = make(outdir, plan, records)
-        except Exception as exc:  # noqa: BLE001 - a figure must not lose the table
-            print(f"eulag: warning: {make.__name__}: {type(exc).__name__}: {exc}", file=sys.stderr)
-            p = None
-        if p is not None:
-            out.append(p)
+    out = draw_figures((_fig_curves, _fig_mass_flux, _fig_viscosity, _fig_friction), outdir, plan, records)
     for n, (grp, info, c) in plan.items():
         for f in records[n].metrics.get("figures", []):
             if Path(f).is_file():
