@@ -150,9 +150,14 @@ def random_block(seed, pass_, parcel, stream, draw):
     Arguments are non-negative integers within the ranges of the module docstring.
     """
     s = np.uint64(seed)
+    return _keyed_block(s & _MASK32, s >> _S32, pass_, parcel, stream, draw)
+
+
+@njit(**JIT_FLAGS)
+def _keyed_block(k0, k1, pass_, parcel, stream, draw):
+    """Two 64-bit words of the Philox block of the counter (draw, stream, parcel, pass) under
+    the key (k0, k1)."""
     d = np.uint64(draw)
-    k0 = s & _MASK32
-    k1 = s >> _S32
     c0 = d & _MASK32
     c1 = ((np.uint64(stream) & _MASK16) << _S16) | ((d >> _S32) & _MASK16)
     c2 = np.uint64(parcel) & _MASK32
@@ -188,15 +193,8 @@ def _aux_block(seed, pass_, parcel, stream, draw, lane, attempt):
     word with the flag bit set).  No regular block has the flag, so the auxiliary bits are
     independent of every regular draw and of each other within a pass."""
     s = np.uint64(seed)
-    d = np.uint64(draw)
     k0 = (s & _MASK32) ^ (np.uint64(2 * attempt + lane) & _MASK32)
-    k1 = (s >> _S32) | _AUX_FLAG
-    c0 = d & _MASK32
-    c1 = ((np.uint64(stream) & _MASK16) << _S16) | ((d >> _S32) & _MASK16)
-    c2 = np.uint64(parcel) & _MASK32
-    c3 = np.uint64(pass_) & _MASK32
-    o0, o1, o2, o3 = philox4x32(c0, c1, c2, c3, k0, k1)
-    return (np.uint64(o0) << _S32) | np.uint64(o1), (np.uint64(o2) << _S32) | np.uint64(o3)
+    return _keyed_block(k0, (s >> _S32) | _AUX_FLAG, pass_, parcel, stream, draw)
 
 
 @njit(**JIT_FLAGS)
