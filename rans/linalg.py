@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 from scipy.sparse.linalg import splu
 
-__all__ = ["BlockStructure", "BlockLU", "LaggedFactor", "LaggedSparseLU"]
+__all__ = ["AndersonMixing", "BlockStructure", "BlockLU", "LaggedFactor", "LaggedSparseLU"]
 
 
 class BlockStructure:
@@ -354,3 +354,67 @@ def _relative_step(dx, x, floor):
             else:
                 return np.inf
     return worst
+
+
+class AndersonMixing:
+    """Anderson acceleration of a fixed-point iteration x ← g(x) (Anderson 1965; the form of
+    Walker & Ni 2011, "Anderson acceleration for fixed-point iterations", SIAM J. Numer.
+    Anal. 49, 1715–1735, with mixing parameter 1).
+
+    After each evaluation g(x_n), :meth:`next` returns the next iterate
+
+        x_{n+1} = g(x_n) − Σ_j γ_j (Δg)_j,   γ = argmin ‖W (f_n − ΔF γ)‖₂,
+
+    f = g(x) − x the fixed-point residual, ΔF and Δg the differences of the last ``depth``
+    residuals and images, W a diagonal weight that puts the unknowns on one scale.  The small
+    least-squares problem is solved through its normal equations with a relative Tikhonov
+    term (``regularisation`` of their trace), which keeps a nearly dependent history harmless.
+    A fixed point of g is a fixed point of the mixed iteration, so the converged state is the
+    unaccelerated one to the tolerance of the convergence test; only the path changes.
+    :meth:`reset` drops the history (after a rejected step)."""
+
+    def __init__(self, depth, weight=None, regularisation=1e-10):
+        if depth < 1:
+            raise ValueError(f"depth = {depth}: must be >= 1")
+        self.depth = int(depth)
+        self.weight = weight
+        self.regularisation = regularisation
+        self.reset()
+
+    def reset(self):
+        self._g = None
+        self._f = None
+        self._dg = None  # ring buffers of the last ``depth`` differences, (depth, n)
+        self._df = None
+        self._gram = np.zeros((self.depth, self.depth))  # ΔF ΔFᵀ, updated a row at a time
+        self._count = 0
+        self._slot = 0
+
+    def next(self, x, g):
+        """The next iterate from the last input ``x`` and its image ``g``."""
+        f = g - x
+        wf = f if self.weight is None else self.weight * f
+        if self._f is not None:
+            if self._dg is None:
+                self._dg = np.empty((self.depth, g.size))
+                self._df = np.empty((self.depth, g.size))
+            s = self._slot
+            np.subtract(g, self._g, out=self._dg[s])
+            np.subtract(wf, self._f, out=self._df[s])
+            self._count = min(self._count + 1, self.depth)
+            self._slot = (s + 1) % self.depth
+            row = self._df[:self._count] @ self._df[s]
+            self._gram[s, :self._count] = row
+            self._gram[:self._count, s] = row
+        self._g, self._f = g, wf
+        m = self._count
+        if m == 0:
+            return g
+        a = self._gram[:m, :m].copy()
+        a[np.diag_indices_from(a)] += self.regularisation * max(np.trace(a), 1e-300)
+        try:
+            gamma = np.linalg.solve(a, self._df[:m] @ wf)
+        except np.linalg.LinAlgError:
+            self.reset()
+            return g
+        return g - gamma @ self._dg[:m]

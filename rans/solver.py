@@ -37,7 +37,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
-from .linalg import LaggedSparseLU
+from .linalg import AndersonMixing, LaggedSparseLU
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -232,6 +232,20 @@ REUSE_FACTORISATION = True
 #: the same for the coupled cross-flow step's 3n system (rans.linalg.LaggedSparseLU, SuperLU
 #: refined); False: a fresh SuperLU factorisation per outer iteration (as with REUSE_FACTORISATION = False)
 REUSE_COUPLED_FACTORISATION = True
+#: Anderson acceleration of a station's outer iteration in the march (rans.linalg.AndersonMixing,
+#: over the whole station state: velocities, cross-section pressure and face fluxes, log k,
+#: log eps, -dp/dx): the number of earlier iterations mixed; 0 iterates plainly.  Its attempt
+#: comes first; a station it does not converge is iterated again from the upstream state by the
+#: plain attempts (_march_station).  The converged state is the same fixed point to the station
+#: tolerance; on scene h's sources the march needs about 2.5x fewer outer iterations
+#: (docs/numerics.md, "Gas solver").
+ANDERSON_DEPTH = 10
+#: plain outer iterations before the mixing starts: most stations of a march converge in a few
+#: iterations, where mixing a short history only perturbs the path
+ANDERSON_DELAY = 10
+#: the accelerated attempt drops its history when an iteration's change exceeds this many times
+#: the smallest change it has reached (a mixed step that went astray)
+ANDERSON_RESTART = 10.0
 #: k >= K_FLOOR U_b^2 and eps >= C_mu k_floor^(3/2) / D after every solve
 #: (docs/physics.md, section 2)
 K_FLOOR = 1e-10
@@ -597,6 +611,33 @@ def _source_slices(sources, i, n):
     }
 
 
+def _pack(st):
+    """The station state as one vector for Anderson mixing (k and eps as logarithms, so that a
+    mixed state stays positive)."""
+    return np.concatenate([st.ux, st.uy, st.uz, st.p, np.log(st.k), np.log(st.eps), st.flux, [st.G]])
+
+
+def _unpack(st, x, solver):
+    n, nf = st.k.size, st.flux.size
+    st.ux, st.uy, st.uz, st.p = (x[i * n:(i + 1) * n].copy() for i in range(4))
+    # the floors the solve itself applies (turbulence_floors): a mixed log k or log eps far
+    # below them would only be floored by the next iteration's k-eps solve
+    st.k = np.maximum(np.exp(x[4 * n:5 * n]), solver.k_floor)
+    st.eps = np.maximum(np.exp(x[5 * n:6 * n]), solver.eps_floor)
+    st.flux = x[6 * n:6 * n + nf].copy()
+    st.G = float(x[-1])
+
+
+def _mixing_weight(st, velocity_scale):
+    """Weights that put the packed unknowns on one scale: velocities by U_b, p and the fluxes by
+    their largest magnitude, log k and log eps as they are, -dp/dx by its value."""
+    n, nf = st.k.size, st.flux.size
+    ps = max(float(np.abs(st.p).max()), 1e-30)
+    fs = max(float(np.abs(st.flux).max()), 1e-30)
+    return np.concatenate([np.full(3 * n, 1.0 / velocity_scale), np.full(n, 1.0 / ps), np.ones(2 * n),
+                           np.full(nf, 1.0 / fs), [1.0 / max(abs(st.G), 1e-30)]])
+
+
 def _initial_state(mesh, bulk_velocity, k0, eps0, profile="uniform"):
     sec = mesh.geometry()
     n = sec.n
@@ -892,17 +933,19 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
     """
     lo, hi = station_iterations
     alpha_u, coupled = solver.alpha_u, solver.coupled
-    attempts = [(relax, alpha_u, coupled)]
+    attempts = [(relax, alpha_u, coupled, False)]
     if not coupled:
-        attempts.append((relax, alpha_u, True))
+        attempts.append((relax, alpha_u, True, False))
     for r, m in STATION_RELAXATION:
         if r < relax or (r == relax and m < alpha_u):
-            attempts.append((r, m, coupled))
+            attempts.append((r, m, coupled, False))
             if m == alpha_u and not coupled:  # k-eps relaxation alone, with the coupled step
-                attempts.append((r, m, True))
+                attempts.append((r, m, True, False))
+    if ANDERSON_DEPTH > 0 and not laminar:
+        attempts.insert(0, (relax, alpha_u, coupled, True))
     best = None
     try:
-        for a, (r, m, cp) in enumerate(attempts):
+        for a, (r, m, cp, accelerate) in enumerate(attempts):
             if best is not None and m != alpha_u:
                 break  # a stalled (not diverged) station is not retried with momentum relaxation
             st = (start if a == 0 and start is not None else prev).copy()
@@ -912,15 +955,25 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
             chunk = max(cap // 4, 1)
             limit, it, changes = cap, 0, []
             at_cap = None  # the unconverged state where the iterations ran out, if iterated on
+            mixing = smallest = None
             try:
                 while it < limit:
+                    x_in = _pack(st) if accelerate else None
                     ch = solver.iterate(st, hist, c0, h, src, laminar, r)
                     residuals.append(ch)
                     changes.append(ch)
                     it += 1
                     if it >= lo and ch < tol:
                         return st, True, it, min(r, m), cp, solver.last_change
-                    if it == limit and _still_converging(changes, chunk, tol, STATION_EXTENSION * cap - it):
+                    if accelerate and it >= ANDERSON_DELAY:
+                        if mixing is None:
+                            mixing = AndersonMixing(ANDERSON_DEPTH, _mixing_weight(st, solver.Ub))
+                        if smallest is not None and ch > ANDERSON_RESTART * smallest:
+                            mixing.reset()
+                        smallest = ch if smallest is None else min(smallest, ch)
+                        _unpack(st, mixing.next(x_in, _pack(st)), solver)
+                    if (it == limit and not accelerate
+                            and _still_converging(changes, chunk, tol, STATION_EXTENSION * cap - it)):
                         if at_cap is None:
                             at_cap = (ch, st.copy(), it, solver.last_change)
                         limit = min(limit + chunk, STATION_EXTENSION * cap)
@@ -933,6 +986,10 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                 ch, st, it, last = at_cap
             else:
                 last = solver.last_change
+            if accelerate:
+                # an accelerated attempt that did not converge leaves a mixed state, not an iterate:
+                # the plain attempts below start again from the upstream state
+                continue
             if best is None or ch / min(r, m) < best[0]:  # the relaxed change, scaled back
                 best = (ch / min(r, m), st, it, min(r, m), cp, last)
     finally:

@@ -161,10 +161,14 @@ def test_lagged_factor_factorises_the_next_matrix_after_a_slow_refinement():
     assert lag.factorisations == 2 and lag._fresh
 
 
-def test_march_with_lagged_factorisations_equals_the_direct_march():
+def test_march_with_lagged_factorisations_equals_the_direct_march(monkeypatch):
     # a developing pipe with a noisy particle-like k sink (tests/benchmarks/bench_rans_sinks.py): every station converges
-    # to the same fields as when every matrix is factorised (to far below the station tolerance)
+    # to the same fields as when every matrix is factorised (to far below the station tolerance).
+    # Plain outer iterations: Anderson mixing (solver.ANDERSON_DEPTH) would take the two paths'
+    # 1e-10 differences into different mixing histories, and the iteration counts compared here apart
     from rans import solver
+
+    monkeypatch.setattr(solver, "ANDERSON_DEPTH", 0)
 
     bench = _sinks_benchmark()
 
@@ -249,6 +253,7 @@ def test_coupled_cross_flow_march_with_a_lagged_sparse_lu_equals_the_direct_one(
         return x
 
     out = {}
+    monkeypatch.setattr(solver, "ANDERSON_DEPTH", 0)  # the same iteration counts on both paths (above)
     for reuse in (True, False):
         monkeypatch.setattr(solver, "REUSE_FACTORISATION", reuse)
         monkeypatch.setattr(linalg.LaggedSparseLU, "solve", checked)
@@ -271,3 +276,60 @@ def test_coupled_cross_flow_march_with_a_lagged_sparse_lu_equals_the_direct_one(
         np.testing.assert_allclose(getattr(a, v), getattr(b, v), rtol=1e-8)
     for v in ("uy", "uz"):
         np.testing.assert_allclose(getattr(a, v), getattr(b, v), rtol=0, atol=1e-8 * np.abs(getattr(b, v)).max())
+
+
+def test_anderson_mixing_solves_a_slow_linear_contraction_to_its_fixed_point():
+    """x = M x + b with spectral radius 0.98 in 8 unknowns: the plain iteration needs ~1000
+    iterations to 1e-9; Anderson mixing of depth 8 is GMRES in disguise for a linear map
+    (Walker & Ni 2011) and reaches the exact fixed point (I - M)^-1 b within ~n + 2 images."""
+    from rans.linalg import AndersonMixing
+
+    rng = np.random.default_rng(4)
+    q, _ = np.linalg.qr(rng.normal(size=(8, 8)))
+    M = q @ np.diag(np.linspace(-0.5, 0.98, 8)) @ q.T
+    b = rng.normal(size=8)
+    exact = np.linalg.solve(np.eye(8) - M, b)
+
+    def iterations(mix):
+        x = np.zeros(8)
+        for n in range(1, 5000):
+            g = M @ x + b
+            if np.abs(g - x).max() < 1e-9:
+                return n, g
+            x = mix.next(x, g) if mix else g
+        return n, x
+
+    n_plain, x_plain = iterations(None)
+    n_mixed, x_mixed = iterations(AndersonMixing(8))
+    assert n_plain > 700 and n_mixed <= 12, (n_plain, n_mixed)
+    np.testing.assert_allclose(x_mixed, exact, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(x_plain, exact, rtol=0, atol=1e-7)
+    with pytest.raises(ValueError, match="depth"):
+        AndersonMixing(0)
+
+
+def test_the_anderson_accelerated_march_converges_to_the_plain_fixed_point(monkeypatch):
+    """The march under the noisy particle-like k sinks of bench_rans_sinks.py (near-laminar
+    cells, slow k-eps contraction): Anderson mixing of each station's outer iteration
+    (solver.ANDERSON_DEPTH) reaches the fields of the plain iteration to the station tolerance,
+    in fewer outer iterations of the returned attempts."""
+    from rans import solver
+
+    bench = _sinks_benchmark()
+    out = {}
+    for depth in (0, solver.ANDERSON_DEPTH):
+        monkeypatch.setattr(solver, "ANDERSON_DEPTH", depth)
+        _, _, out[depth], _ = bench.run(length=0.2, relaxation=0.3, visits=4.0, seed=1)
+    plain, mixed = out[0], out[solver.ANDERSON_DEPTH]
+    assert solver.ANDERSON_DEPTH > 0
+    assert plain.converged and mixed.converged
+    assert mixed.station_iterations.sum() < 0.8 * plain.station_iterations.sum()
+    tol = 1e-6  # the benchmark's station tolerance (rans.solve default)
+    np.testing.assert_allclose(mixed.ux, plain.ux, rtol=0, atol=5 * tol * 10.0)
+    for v in ("uy", "uz"):
+        np.testing.assert_allclose(getattr(mixed, v), getattr(plain, v), rtol=0,
+                                   atol=1e-3 * np.abs(getattr(plain, v)).max(), err_msg=v)
+    # k and eps contract slowly where the sink has all but laminarised the cell
+    np.testing.assert_allclose(mixed.k, plain.k, rtol=100 * tol)
+    np.testing.assert_allclose(mixed.epsilon, plain.epsilon, rtol=100 * tol)
+    np.testing.assert_allclose(mixed.pressure_gradient, plain.pressure_gradient, rtol=10 * tol)

@@ -210,7 +210,16 @@ def test_wall_shear_coefficient_is_continuous_at_the_sublayer_switch():
     assert 11.5 < ke.YSTAR_LAMINAR < 11.56
 
 
-def test_a_diverging_station_is_retried_with_relaxation_and_keeps_the_fixed_point(monkeypatch):
+@pytest.fixture
+def plain_march(monkeypatch):
+    """The retry chain of _march_station without its first, Anderson-accelerated attempt (the
+    tests below count the plain attempts' iterations; the accelerated one has its own tests)."""
+    from rans import solver as S
+
+    monkeypatch.setattr(S, "ANDERSON_DEPTH", 0)
+
+
+def test_a_diverging_station_is_retried_with_relaxation_and_keeps_the_fixed_point(monkeypatch, plain_march):
     """A station of the march whose outer iteration diverges is iterated again with implicit
     relaxation (rans.solver._march_station), and the relaxation used is recorded per station.
     k-eps relaxation alone keeps the field the march gives without the failure (to the
@@ -265,7 +274,7 @@ def test_a_diverging_station_is_retried_with_relaxation_and_keeps_the_fixed_poin
         run(lambda s, r: True)
 
 
-def test_a_stalling_station_is_retried_with_the_coupled_cross_flow_step(monkeypatch):
+def test_a_stalling_station_is_retried_with_the_coupled_cross_flow_step(monkeypatch, plain_march):
     """A station whose SIMPLEC iteration does not reach the tolerance within its iterations is
     iterated again with the coupled cross-flow step; the march then converges."""
     from rans import solver as S
@@ -315,7 +324,7 @@ def test_the_march_records_which_stations_converged_and_their_last_change():
     assert full.converged and full.station_converged.all() and np.all(full.station_change.max(axis=1) < tol)
 
 
-def test_a_stalled_station_is_retried_with_k_eps_relaxation_and_keeps_the_fixed_point(monkeypatch):
+def test_a_stalled_station_is_retried_with_k_eps_relaxation_and_keeps_the_fixed_point(monkeypatch, plain_march):
     """A station that stalls without relaxation (SIMPLEC and the coupled step) is iterated again
     with implicit k-eps relaxation 0.5 and no momentum relaxation, which keeps the fixed point:
     the march converges there to the field it gives without the stall (the near-wall
@@ -360,7 +369,7 @@ def test_a_stalled_station_is_retried_with_k_eps_relaxation_and_keeps_the_fixed_
 
 
 @pytest.mark.parametrize("rate, iterates_on", [(0.9, True), (0.995, False)])
-def test_a_slowly_but_steadily_converging_station_iterates_on(monkeypatch, rate, iterates_on):
+def test_a_slowly_but_steadily_converging_station_iterates_on(monkeypatch, plain_march, rate, iterates_on):
     """A station whose change is still falling steadily when its iterations run out iterates on
     (no coupled retry) when that rate reaches the tolerance within STATION_EXTENSION times its
     iterations (here: 1e-3 * 0.9^n < 1e-9 at n = 132 < 4 x 60); at a rate that would need more
@@ -390,7 +399,7 @@ def test_a_slowly_but_steadily_converging_station_iterates_on(monkeypatch, rate,
         assert f.station_coupled[7] and calls["simplec"] == 60
 
 
-def test_a_station_that_contracts_steadily_after_a_bump_iterates_on(monkeypatch):
+def test_a_station_that_contracts_steadily_after_a_bump_iterates_on(monkeypatch, plain_march):
     """Scene g's case at test size: the change rises to 1e-2 at iteration 42 of 60, turns over
     and falls by 0.75 per iteration.  The chunk maxima (6.6e-3 vs 1e-2) would project ~560 more
     iterations (> 180 left), the straight fall of its last 15 ~40: it iterates on and converges
@@ -438,7 +447,7 @@ def test_importing_eulag_makes_blas_single_threaded_unless_the_user_chose():
     assert out.stdout.strip() == "2"
 
 
-def test_a_station_that_diverges_while_iterating_on_keeps_the_state_where_its_iterations_ran_out(monkeypatch):
+def test_a_station_that_diverges_while_iterating_on_keeps_the_state_where_its_iterations_ran_out(monkeypatch, plain_march):
     """Iterating on must not turn an unconverged station into a failed solve: an attempt that
     diverges after its cap ends as the state at the cap (returned unconverged, as before)."""
     from rans import solver as S

@@ -20,7 +20,8 @@ of cases/scenes/scene_h.toml with ``numerics.parcels = parcels_start = 6000`` an
 each repetition of the solve on the sources: wall time, stations that kept the coupled
 cross-flow step, outer iterations, -dp/dx, whether it converged, and the factorisations/solves
 of the coupled step's lagged SuperLU (``rans.linalg.LaggedSparseLU``).  ``--direct-coupled``
-factorises every coupled-step matrix (the former path), for comparison; timings on a shared
+factorises every coupled-step matrix (the former path), and ``--plain`` iterates the stations
+without Anderson mixing, for comparison; timings on a shared
 machine are noisy: run both, interleaved, several times.
 
 ``--warm-from PATH`` (with ``--only`` and that case's checkpoint): the checkpoint of the pass
@@ -185,6 +186,8 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1, help="gas solves timed per case")
     ap.add_argument("--direct-coupled", action="store_true",
                     help="factorise every coupled-step matrix (no lagged SuperLU), for comparison")
+    ap.add_argument("--plain", action="store_true",
+                    help="iterate the stations without Anderson mixing (rans.solver.ANDERSON_DEPTH = 0), for comparison")
     ap.add_argument("--only", choices=("base", "scene"), help="one of the two cases")
     ap.add_argument("--save", type=Path, help="write the last solve's fields to SAVE-<base|scene>.npz")
     ap.add_argument("--warm-from", type=Path,
@@ -192,6 +195,8 @@ def main(argv=None):
                          "warm-started solves")
     a = ap.parse_args(argv)
     solver.REUSE_COUPLED_FACTORISATION = not a.direct_coupled
+    if a.plain:
+        solver.ANDERSON_DEPTH = 0
     if a.warm_from is not None and (a.only is None or (a.scene_checkpoint if a.only == "scene" else a.base_checkpoint)
                                     is None):
         ap.error("--warm-from needs --only and that case's checkpoint")
