@@ -142,6 +142,15 @@ COLLISION_MOMENTUM_LIMIT = 0.5
 COLLISION_MOMENTUM_LIMIT_PASSES = 3
 COLLISION_MOMENTUM_PASSES = 6
 COLLISION_MOMENTUM_AHEAD = 10.0
+#: With the partners' impulse returned (physics.partner_momentum = "returned") the level must
+#: vanish as well: the net collision momentum / inflow of the last COLLISION_BALANCE_PASSES
+#: passes, their mean and their trend line's present value, within 3 standard errors of zero
+#: (``collision_momentum_balance``).  The returned
+#: acceleration is an integral controller, and the loop swings about the balance for tens of
+#: passes (the base case: −0.083 of the inflow at pass 10, +0.017 at pass 30, within ±0.003
+#: from pass 55); the trend criterion alone is met at a turning point of the swing (pass 13,
+#: −dp/dx 67.8 Pa/m against the 63.3 it settles at).  A numerical choice of ours.
+COLLISION_BALANCE_PASSES = 10
 #: Weight of the newest pass in the collision statistics' mean velocity and spin (at least;
 #: the rest of the statistics take the case's α): a numerical choice.
 STATISTICS_MEAN_WEIGHT = 0.5
@@ -181,6 +190,34 @@ def collision_momentum_to_come(history) -> float:
     v = v[-COLLISION_MOMENTUM_PASSES:]
     trend = np.polyfit(np.arange(v.size, dtype=float), v, 1)[0]
     return float(abs(trend) * COLLISION_MOMENTUM_AHEAD)
+
+
+def collision_momentum_balance(history) -> float:
+    """How far the collisions' net momentum / inflow of the last COLLISION_BALANCE_PASSES
+    recorded passes stands from zero, in units of three standard errors: the larger of |their
+    mean| and |their least-squares line at the last pass|, each over three of its own standard
+    errors (from the scatter about the line).  Below 1 when the net momentum is zero within
+    the passes' noise.  Either reading alone is fooled by a swing of the loop: the mean
+    vanishes when the window straddles a zero crossing, the line's end where the swing
+    crosses zero at the last pass (the base case: passes 28 and 42); both vanish only once
+    the swing has died down.  inf while fewer passes are recorded (the first two do not count,
+    as in ``collision_momentum_to_come``)."""
+    v = np.asarray(history[2:], dtype=float)
+    v = v[np.isfinite(v)][-COLLISION_BALANCE_PASSES:]
+    n = v.size
+    if n < max(COLLISION_BALANCE_PASSES, 3):
+        return math.inf
+    x = np.arange(n, dtype=float)
+    line = np.polyfit(x, v, 1)
+    scatter = v - np.polyval(line, x)
+    s = math.sqrt(float(np.sum(scatter * scatter)) / (n - 2))
+    end = abs(float(np.polyval(line, x[-1])))
+    mean = abs(float(np.mean(v)))
+    se_mean = s / math.sqrt(n)
+    se_end = s * math.sqrt(1.0 / n + (x[-1] - x.mean()) ** 2 / float(np.sum((x - x.mean()) ** 2)))
+    if s == 0.0:
+        return 0.0 if mean == 0.0 and end == 0.0 else math.inf
+    return max(mean / (3.0 * se_mean), end / (3.0 * se_end))
 
 
 def pressure_gradient_to_come(history, relaxation) -> tuple[float, float, float]:
@@ -296,15 +333,18 @@ class Criterion:
 
 
 #: The criteria in the order the loop judges them (``convergence_criteria``).
-CRITERIA = ("gas_solve", "residual", "pressure_gradient_to_come", "mass_balance", "collision_momentum_to_come")
+CRITERIA = ("gas_solve", "residual", "pressure_gradient_to_come", "mass_balance", "collision_momentum_to_come",
+            "collision_momentum_balance")
 
 
-def convergence_criteria(history, gas_converged, tolerance, collisions=True) -> list[Criterion]:
+def convergence_criteria(history, gas_converged, tolerance, collisions=True, returned=False) -> list[Criterion]:
     """Each convergence criterion of the coupling loop after the last pass of ``history``
     (a ``_History``), with its value and threshold (module docstring, "Convergence").
 
     gas_converged : whether the last gas solve converged; tolerance : numerics.coupling_tolerance;
-    collisions : whether inter-particle collisions run (else their momentum is not judged).
+    collisions : whether inter-particle collisions run (else their momentum is not judged);
+    returned : whether the partners' impulse is returned (physics.partner_momentum), which adds
+    the criterion that the net collision momentum vanish (``collision_momentum_balance``).
     The loop has converged when every criterion is met."""
     h = history
     crit = [Criterion("gas_solve", 0.0 if gas_converged else 1.0, 0.5, bool(gas_converged),
@@ -330,6 +370,12 @@ def convergence_criteria(history, gas_converged, tolerance, collisions=True) -> 
         crit.append(Criterion("collision_momentum_to_come", cm, COLLISION_MOMENTUM_TOL,
                               bool(cm < COLLISION_MOMENTUM_TOL),
                               "change still to come of the collisions' net momentum / inflow"))
+        if returned:
+            cb = collision_momentum_balance(h.collision_momentum)
+            crit.append(Criterion("collision_momentum_balance", cb, 1.0, bool(cb < 1.0),
+                                  f"net collision momentum / inflow of the last {COLLISION_BALANCE_PASSES} passes, "
+                                  "mean and trend at the last pass, over 3 standard errors "
+                                  "(partner momentum returned)"))
     return crit
 
 
@@ -421,6 +467,7 @@ class _History:
     criterion_pressure_gradient_to_come: list = field(default_factory=list)
     criterion_mass_balance: list = field(default_factory=list)
     criterion_collision_momentum_to_come: list = field(default_factory=list)
+    criterion_collision_momentum_balance: list = field(default_factory=list)
 
     def arrays(self):
         return {k: np.asarray(v, dtype=np.float64) for k, v in self.__dict__.items()}
@@ -903,7 +950,9 @@ class CouplingLoop:
         that ends unconverged reports) and return whether all are met."""
         self.criteria = convergence_criteria(self.history, bool(self.gas.converged),
                                              self.case.numerics.coupling_tolerance,
-                                             collisions=self.physics.inter_particle_collisions)
+                                             collisions=self.physics.inter_particle_collisions,
+                                             returned=(self.physics.inter_particle_collisions
+                                                       and self.physics.partner_momentum == "returned"))
         return all(c.met for c in self.criteria)
 
     @property

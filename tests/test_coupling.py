@@ -617,6 +617,48 @@ def test_k_sink_of_small_particles_matches_the_langevin_two_fluid_result(diamete
     assert lo < ratio < hi, ratio
 
 
+def test_with_the_partner_momentum_returned_convergence_waits_for_the_net_collision_momentum_to_vanish():
+    """physics.partner_momentum = "returned" is an integral controller, and the loop swings
+    about the balance (the base case, 100 passes: -0.083 of the inflow at pass 10, +0.017 at 30,
+    within +-0.003 from 55).  collision_momentum_balance must not pass the swing for noise, at
+    its turning points (where the trend criterion is met) nor at its zero crossings (where a
+    window mean or a trend line's end vanishes), and must pass the settled noise."""
+    from eulag.coupling import COLLISION_BALANCE_PASSES, collision_momentum_balance, convergence_criteria
+
+    rng = np.random.default_rng(5)
+    p = np.arange(120, dtype=float)
+    noise = 0.0015
+    passed_swing, passed_noise, draws = 0, 0, 200
+    for _ in range(draws):
+        swing = 0.12 * np.exp(-p / 14.0) * np.cos(2.0 * np.pi * p / 40.0 + 0.3)
+        h = list(swing + noise * rng.normal(size=p.size))
+        h[0] = 0.0
+        # while the swing's envelope over the window is above 5 noise levels: never passed
+        for m in range(14, 120):
+            if 0.12 * np.exp(-(m - COLLISION_BALANCE_PASSES) / 14.0) > 5.0 * noise:
+                passed_swing += collision_momentum_balance(h[:m]) < 1.0
+        # pure noise about zero: passed in most windows
+        passed_noise += collision_momentum_balance([0.0, 0.1] + list(noise * rng.normal(size=12))) < 1.0
+    assert passed_swing == 0
+    assert passed_noise > 0.75 * draws
+    # a steady offset of 4 noise levels is not a balance
+    assert collision_momentum_balance([0.0, 0.1] + list(0.006 + noise * rng.normal(size=12))) > 1.0
+    assert collision_momentum_balance([0.0, 0.1, 0.01]) == math.inf  # too few passes to judge
+    assert collision_momentum_balance([0.0] * 14) == 0.0  # nothing to return
+
+    loop = CouplingLoop(small_case())
+    h = loop.history
+    h.residual = [math.nan] + [1.0] * 13
+    h.pressure_gradient = [61.0] * 14
+    h.relaxation = [0.3] * 14
+    h.mass_balance = [0.0] * 14
+    h.collision_momentum = [0.0, 0.2] + [-0.03] * 12  # settled (no trend), but not balanced
+    names = [c.name for c in convergence_criteria(h, True, 1.5)]
+    assert "collision_momentum_balance" not in names  # the partners' impulse discarded: a level is reported
+    crit = {c.name: c for c in convergence_criteria(h, True, 1.5, returned=True)}
+    assert crit["collision_momentum_to_come"].met and not crit["collision_momentum_balance"].met
+
+
 def test_convergence_waits_for_the_collision_momentum_to_settle():
     """Sources and pressure gradient settled, but the fictitious partners' momentum still
     changing by 0.5 % of the particle inflow per pass (eta = 10 at 'convergence' before this
