@@ -914,6 +914,13 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
        with it (from the stations' upstream states; momentum relaxation 0.7 slows the decay
        instead, and 0.7 alone does not converge; docs/history.md).
 
+    3. when no attempt converged, the first plain attempt (SIMPLEC or the case's step, the
+       relaxation given) iterates on from its state at its cap, up to STATION_EXTENSION times
+       its iterations in all: a pocket of near-laminar cells can drift slowly for ~300
+       iterations before the iteration contracts (scene h's pass 9, x = 0.9 m), a change that
+       neither grows nor falls, which no reading of ``_still_converging`` can tell from a
+       wandering iteration, and which neither the relaxations nor the coupled step get past.
+
     An attempt that is still converging when its iterations run out (the largest change of the
     last quarter of them fell from the quarter before, or the last quarter's changes fall on a
     straight line in log(change), at a rate that reaches the tolerance within
@@ -944,6 +951,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
     if ANDERSON_DEPTH > 0 and not laminar:
         attempts.insert(0, (relax, alpha_u, coupled, True))
     best = None
+    resume = None  # the first plain attempt's state where its iterations ran out
     try:
         for a, (r, m, cp, accelerate) in enumerate(attempts):
             if best is not None and m != alpha_u:
@@ -986,12 +994,33 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                 ch, st, it, last = at_cap
             else:
                 last = solver.last_change
+                if resume is None and not accelerate and (r, m, cp) == (relax, alpha_u, coupled):
+                    resume = (st.copy(), it, cap)
             if accelerate:
                 # an accelerated attempt that did not converge leaves a mixed state, not an iterate:
                 # the plain attempts below start again from the upstream state
                 continue
             if best is None or ch / min(r, m) < best[0]:  # the relaxed change, scaled back
                 best = (ch / min(r, m), st, it, min(r, m), cp, last)
+        if resume is not None:
+            # the last resort: the plain attempt iterates on from where its iterations ran out, up
+            # to STATION_EXTENSION times its cap, through a slow drift that none of the attempts
+            # above gets past (scene h, x = 0.9 m: ~300 iterations, then a fast contraction)
+            st, it, cap = resume
+            solver.alpha_u, solver.coupled = alpha_u, coupled
+            r = min(relax, alpha_u)
+            try:
+                while it < STATION_EXTENSION * cap:
+                    ch = solver.iterate(st, hist, c0, h, src, laminar, relax)
+                    residuals.append(ch)
+                    it += 1
+                    if ch < stol * r:
+                        return st, True, it, r, coupled, solver.last_change
+            except SolverDivergence:
+                pass
+            else:
+                if ch / r < best[0]:
+                    best = (ch / r, st, it, r, coupled, solver.last_change)
     finally:
         solver.alpha_u, solver.coupled = alpha_u, coupled
     return best[1], False, best[2], best[3], best[4], best[5]

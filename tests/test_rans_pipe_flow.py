@@ -476,6 +476,41 @@ def test_a_station_that_diverges_while_iterating_on_keeps_the_state_where_its_it
     assert all(n == 71 for n in calls.values())
 
 
+def test_a_station_that_drifts_past_every_attempt_iterates_on_as_the_last_resort(monkeypatch, plain_march):
+    """Scene h's pass 9 at x = 0.9 m: the plain iteration drifts for ~300 iterations at a change
+    that neither grows nor falls, then contracts; SIMPLEC, the coupled step and the k-eps
+    relaxation all stall on it within their caps.  When no attempt converged, the first plain
+    attempt iterates on from its cap (up to STATION_EXTENSION times it) and converges, to the
+    field of the plain march."""
+    from rans import solver as S
+
+    U = 10.0
+    m = PipeMesh.build(D, 0.3, "developing", axial_cells=12, radial_cells=8, azimuthal_cells=12,
+                       bulk_velocity=U, density=RHO, viscosity=MU)
+    plain = solve(m, GAS, U, tol=1e-9)
+    orig = S._StationSolver._iterate
+    calls = {"plain": 0, "other": 0}
+
+    def drifting(self, st, hist, c0, dx, src, laminar, relax_turb):
+        ch = orig(self, st, hist, c0, dx, src, laminar, relax_turb)
+        if self.station != 7:
+            return ch
+        if not self.coupled and relax_turb == 1.0:
+            calls["plain"] += 1
+            return ch if calls["plain"] > 100 else max(ch, 1e-3)  # a drift of 100 iterations
+        calls["other"] += 1
+        return max(ch, 1e-3)  # the retries stall
+
+    monkeypatch.setattr(S._StationSolver, "_iterate", drifting)
+    f = solve(m, GAS, U, tol=1e-9, station_iterations=(2, 60))
+    assert f.converged and f.station_converged.all()
+    assert f.station_iterations[7] == calls["plain"] == 101  # 60, then on from there
+    assert calls["other"] > 0 and not f.station_coupled[7] and f.station_relaxation[7] == 1.0
+    for name in ("ux", "uy", "uz", "k", "epsilon"):
+        dev = np.abs(getattr(f, name) - getattr(plain, name)).max() / np.abs(getattr(plain, name)).max()
+        assert dev < 1e-7, name
+
+
 def test_only_a_steady_contraction_counts_as_still_converging():
     from rans.solver import _still_converging
 
