@@ -8,7 +8,7 @@ from eulag import runs
 
 rule, factor = sys.argv[1], float(sys.argv[2])
 scene = sys.argv[3] if len(sys.argv) > 3 else "e"
-base = Case.from_toml(CASES_DIR / "scenes" / f"scene_{scene}.toml").replace(numerics=PROXY_NUMERICS)
+base = Case.from_toml(CASES_DIR / "scenes" / f"scene_{scene}.toml").replace(numerics={**PROXY_NUMERICS, "max_passes": 80})
 name = f"proxy_{scene}__step_rule-{rule}__step_factor-{factor:g}"
 case = base.replace(name=name, numerics={"step_rule": rule, "step_factor": factor})
 out = Path(__file__).parent / f"{name}.nc"
