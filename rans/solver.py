@@ -618,14 +618,21 @@ def _pack(st):
 
 
 def _unpack(st, x, solver):
+    """Set ``st`` from a packed (mixed) state; False, leaving ``st`` as it is, where the mixed
+    state is not finite (an extrapolation far out: exp of a huge log eps)."""
     n, nf = st.k.size, st.flux.size
+    with np.errstate(over="ignore"):
+        k, eps = np.exp(x[4 * n:5 * n]), np.exp(x[5 * n:6 * n])
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(k)) and np.all(np.isfinite(eps))):
+        return False
     st.ux, st.uy, st.uz, st.p = (x[i * n:(i + 1) * n].copy() for i in range(4))
     # the floors the solve itself applies (turbulence_floors): a mixed log k or log eps far
     # below them would only be floored by the next iteration's k-eps solve
-    st.k = np.maximum(np.exp(x[4 * n:5 * n]), solver.k_floor)
-    st.eps = np.maximum(np.exp(x[5 * n:6 * n]), solver.eps_floor)
+    st.k = np.maximum(k, solver.k_floor)
+    st.eps = np.maximum(eps, solver.eps_floor)
     st.flux = x[6 * n:6 * n + nf].copy()
     st.G = float(x[-1])
+    return True
 
 
 def _mixing_weight(st, velocity_scale):
@@ -979,7 +986,8 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                         if smallest is not None and ch > ANDERSON_RESTART * smallest:
                             mixing.reset()
                         smallest = ch if smallest is None else min(smallest, ch)
-                        _unpack(st, mixing.next(x_in, _pack(st)), solver)
+                        if not _unpack(st, mixing.next(x_in, _pack(st)), solver):
+                            mixing.reset()  # a step far out: the plain image stands, the history restarts
                     if (it == limit and not accelerate
                             and _still_converging(changes, chunk, tol, STATION_EXTENSION * cap - it)):
                         if at_cap is None:

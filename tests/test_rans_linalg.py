@@ -333,3 +333,23 @@ def test_the_anderson_accelerated_march_converges_to_the_plain_fixed_point(monke
     np.testing.assert_allclose(mixed.k, plain.k, rtol=100 * tol)
     np.testing.assert_allclose(mixed.epsilon, plain.epsilon, rtol=100 * tol)
     np.testing.assert_allclose(mixed.pressure_gradient, plain.pressure_gradient, rtol=10 * tol)
+
+
+def test_a_mixed_station_state_that_is_not_finite_is_rejected():
+    """rans.solver._unpack: a mixing step far out (log eps of 1e3: exp overflows) leaves the
+    state as it was and says so, instead of handing inf to the next iteration."""
+    from rans import PipeMesh, solver
+
+    mesh = PipeMesh.build(0.0305, 0.1, "developing", axial_cells=4, radial_cells=4, azimuthal_cells=8,
+                          bulk_velocity=10.0, density=1.205, viscosity=1.81e-5)
+    st = solver._initial_state(mesh, 10.0, 1.0, 30.0)
+    slv = solver._StationSolver(mesh, solver.GasProperties(1.205, 1.81e-5), 10.0)
+    x = solver._pack(st)
+    assert solver._unpack(st, x * 1.0, slv) and np.allclose(st.k, 1.0) and np.allclose(st.eps, 30.0)
+    n = st.k.size
+    far = x.copy()
+    far[5 * n] = 1e3
+    before = st.copy()
+    assert not solver._unpack(st, far, slv)
+    np.testing.assert_array_equal(st.eps, before.eps)
+    np.testing.assert_array_equal(st.ux, before.ux)
