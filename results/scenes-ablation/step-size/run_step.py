@@ -13,7 +13,7 @@ name = f"proxy_{scene}__step_rule-{rule}__step_factor-{factor:g}"
 case = base.replace(name=name, numerics={"step_rule": rule, "step_factor": factor})
 out = Path(__file__).parent / f"{name}.nc"
 t = time.perf_counter()
-res = runs.execute(case, out)
+res = runs.execute(case, out, resume=True)
 m = extract_metrics(res.dataset, case)
 m.update(time=time.perf_counter() - t, converged=bool(res.dataset.attrs.get("converged", False)),
          passes=int(res.dataset.sizes.get("iteration", 0)))
