@@ -147,8 +147,8 @@ COLLISION_MOMENTUM_AHEAD = 10.0
 #: passes, their mean and their trend line's present value, within 3 standard errors of zero
 #: (``collision_momentum_balance``).  The returned
 #: acceleration is an integral controller, and the loop swings about the balance for tens of
-#: passes (the base case: −0.083 of the inflow at pass 10, +0.017 at pass 30, within ±0.003
-#: from pass 55); the trend criterion alone is met at a turning point of the swing (pass 13,
+#: passes (the base case: −0.083 of the inflow at pass 10, +0.017 at pass 30, within ±0.004
+#: from pass 51); the trend criterion alone is met at a turning point of the swing (pass 13,
 #: −dp/dx 67.8 Pa/m against the 63.3 it settles at).  A numerical choice of ours.
 COLLISION_BALANCE_PASSES = 10
 #: Weight of the newest pass in the collision statistics' mean velocity and spin (at least;

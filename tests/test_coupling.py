@@ -620,7 +620,7 @@ def test_k_sink_of_small_particles_matches_the_langevin_two_fluid_result(diamete
 def test_with_the_partner_momentum_returned_convergence_waits_for_the_net_collision_momentum_to_vanish():
     """physics.partner_momentum = "returned" is an integral controller, and the loop swings
     about the balance (the base case, 100 passes: -0.083 of the inflow at pass 10, +0.017 at 30,
-    within +-0.003 from 55).  collision_momentum_balance must not pass the swing for noise, at
+    within +-0.004 from 51).  collision_momentum_balance must not pass the swing for noise, at
     its turning points (where the trend criterion is met) nor at its zero crossings (where a
     window mean or a trend line's end vanishes), and must pass the settled noise."""
     from eulag.coupling import COLLISION_BALANCE_PASSES, collision_momentum_balance, convergence_criteria
