@@ -951,8 +951,7 @@ class CouplingLoop:
         self.criteria = convergence_criteria(self.history, bool(self.gas.converged),
                                              self.case.numerics.coupling_tolerance,
                                              collisions=self.physics.inter_particle_collisions,
-                                             returned=(self.physics.inter_particle_collisions
-                                                       and self.physics.partner_momentum == "returned"))
+                                             returned=self.physics.partner_momentum == "returned")
         return all(c.met for c in self.criteria)
 
     @property

@@ -237,8 +237,8 @@ REUSE_COUPLED_FACTORISATION = True
 #: log eps, -dp/dx): the number of earlier iterations mixed; 0 iterates plainly.  Its attempt
 #: comes first; a station it does not converge is iterated again from the upstream state by the
 #: plain attempts (_march_station).  The converged state is the same fixed point to the station
-#: tolerance; on scene h's sources the march needs about 2.5x fewer outer iterations
-#: (docs/numerics.md, "Gas solver").
+#: tolerance; on scene h's sources the march needs about 2.4x fewer outer iterations, counting
+#: the attempts dropped (docs/numerics.md, "Gas solver").
 ANDERSON_DEPTH = 10
 #: plain outer iterations before the mixing starts: most stations of a march converge in a few
 #: iterations, where mixing a short history only perturbs the path
@@ -973,7 +973,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
             mixing = smallest = None
             try:
                 while it < limit:
-                    x_in = _pack(st) if accelerate else None
+                    x_in = _pack(st) if accelerate and it + 1 >= ANDERSON_DELAY else None
                     ch = solver.iterate(st, hist, c0, h, src, laminar, r)
                     residuals.append(ch)
                     changes.append(ch)
@@ -1010,10 +1010,11 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                 continue
             if best is None or ch / min(r, m) < best[0]:  # the relaxed change, scaled back
                 best = (ch / min(r, m), st, it, min(r, m), cp, last)
-        if resume is not None:
+        if resume is not None and resume[1] < STATION_EXTENSION * resume[2]:
             # the last resort: the plain attempt iterates on from where its iterations ran out, up
-            # to STATION_EXTENSION times its cap, through a slow drift that none of the attempts
-            # above gets past (scene h, x = 0.9 m: ~300 iterations, then a fast contraction)
+            # to STATION_EXTENSION times its cap (unless it was extended that far already),
+            # through a slow drift that none of the attempts above gets past (scene h,
+            # x = 0.9 m: ~300 iterations, then a fast contraction)
             st, it, cap = resume
             solver.alpha_u, solver.coupled = alpha_u, coupled
             r = min(relax, alpha_u)

@@ -312,7 +312,8 @@ def test_the_anderson_accelerated_march_converges_to_the_plain_fixed_point(monke
     """The march under the noisy particle-like k sinks of bench_rans_sinks.py (near-laminar
     cells, slow k-eps contraction): Anderson mixing of each station's outer iteration
     (solver.ANDERSON_DEPTH) reaches the fields of the plain iteration to the station tolerance,
-    in fewer outer iterations of the returned attempts."""
+    in fewer outer iterations, those of the accelerated attempts it dropped included (every
+    outer iteration appends to GasField.residuals)."""
     from rans import solver
 
     bench = _sinks_benchmark()
@@ -323,7 +324,7 @@ def test_the_anderson_accelerated_march_converges_to_the_plain_fixed_point(monke
     plain, mixed = out[0], out[solver.ANDERSON_DEPTH]
     assert solver.ANDERSON_DEPTH > 0
     assert plain.converged and mixed.converged
-    assert mixed.station_iterations.sum() < 0.8 * plain.station_iterations.sum()
+    assert len(mixed.residuals) < 0.85 * len(plain.residuals)  # 1,046 against 1,408 measured
     tol = 1e-6  # the benchmark's station tolerance (rans.solve default)
     np.testing.assert_allclose(mixed.ux, plain.ux, rtol=0, atol=5 * tol * 10.0)
     for v in ("uy", "uz"):

@@ -29,8 +29,8 @@ before.  Its sources are solved first (cold, untimed: the converged field with t
 of every station, as the loop would hold it), then each repetition times a cold solve and a
 solve warm-started from that field (``rans.solve(initial=...)``), and prints both solves'
 outer iterations and their largest difference per field, relative to the field's maximum, over
-all stations and over the stations upstream of the first one where they part by more than
-1e-5 (which, with its retries, is printed).
+all stations and over the stations upstream of the first one where u_x, k, epsilon or -dp/dx
+part by more than 1e-4 of their maximum (which, with its retries, is printed).
 """
 
 from __future__ import annotations
