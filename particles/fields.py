@@ -159,13 +159,16 @@ def _blend_section(tab, i, j, k0, k1, wt, f, out, scale):
 
 
 @njit(**KERNEL_FLAGS)
-def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out):
+def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out, ring_hint=-1):
     """Gas fields at the point (x, y, z) [m] into ``out`` (NF,); see the module docstring.
 
     tab (nx, nr, nt, NT), axis (nx, NT), xc (nx,) station centres (uniform), rc (nr,) ring
     centres, r_edges (nr+1,), length [m], radius [m], nu [m2 s-1].  Points beyond r = R are
     treated as on the wall ring.  Returns the indices (i, j, k) of the cell holding the point,
-    as ``rans.locate_cell`` computes them (i = -1 outside the pipe).
+    as ``rans.locate_cell`` computes them (i = -1 outside the pipe).  ``ring_hint``: a ring
+    near the point (the tracker passes the ring of the previous position), from which the ring
+    is found by stepping outward or inward instead of a binary search; the result is the
+    same for any hint (-1: binary search).
     """
     nx = tab.shape[0]
     nr = tab.shape[1]
@@ -203,7 +206,22 @@ def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out):
     if k1 == nt:
         k1 = 0
     r = math.sqrt(y * y + z * z)
-    ci, cj, ck = cell_index(x, r, th, length, nx, r_edges, nt)
+    if ring_hint < 0:
+        ci, cj, ck = cell_index(x, r, th, length, nx, r_edges, nt)
+    elif x < 0.0 or x > length or r > r_edges[nr]:
+        ci, cj, ck = -1, -1, -1
+    else:  # rans.mesh.cell_index with the ring stepped from the hint (same indices)
+        ci = int(x / length * nx)
+        if ci >= nx:
+            ci = nx - 1
+        cj = min(ring_hint, nr - 1)
+        while cj > 0 and r_edges[cj] > r:
+            cj -= 1
+        while cj < nr - 1 and r_edges[cj + 1] <= r:
+            cj += 1
+        ck = int(th / (2.0 * math.pi) * nt)
+        if ck >= nt:
+            ck = nt - 1
     dwx = 0.0 if (nx == 1 or wx <= 0.0 or wx >= 1.0) else 1.0 / (xc[1] - xc[0])
     dwt = nt / (2.0 * math.pi)  # d wt / d theta
     if r < rc[nr - 1]:
@@ -224,14 +242,17 @@ def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out):
             klo_t1 = 0.0
             wr_for_t = wr
         else:
-            lo = 0
-            hi = nr - 1
-            while hi - lo > 1:
-                mid = (lo + hi) >> 1
-                if rc[mid] <= r:
-                    lo = mid
-                else:
-                    hi = mid
+            if cj >= 0:  # rc[cj - 1] < r_edges[cj] <= r < r_edges[cj + 1] < rc[cj + 1]
+                lo = cj if rc[cj] <= r else cj - 1
+            else:
+                lo = 0
+                hi = nr - 1
+                while hi - lo > 1:
+                    mid = (lo + hi) >> 1
+                    if rc[mid] <= r:
+                        lo = mid
+                    else:
+                        hi = mid
             wr = (r - rc[lo]) / (rc[lo + 1] - rc[lo])
             dwr = 1.0 / (rc[lo + 1] - rc[lo])
             _blend_section(tab, i0, lo, k0, k1, wt, NT, out, (1.0 - wr) * (1.0 - wx))

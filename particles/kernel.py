@@ -306,11 +306,13 @@ def make_motion(options=PhysicsOptions()):
                 bx -= c * wfx
                 by -= c * wfy
                 bz -= c * wfz
+        om_slip = -1.0  # |Ω| = |½ ∇×U − ω| at the start of the step, shared with the spin update
         if magnus:
             ox = 0.5 * wfx - omega[0]
             oy = 0.5 * wfy - omega[1]
             oz = 0.5 * wfz - omega[2]
             om = math.sqrt(ox * ox + oy * oy + oz * oz)
+            om_slip = om
             if om > 0.0 and re_p > 0.0:
                 re_r = rho_f * d * d * om / mu
                 if lun_liu:
@@ -387,7 +389,7 @@ def make_motion(options=PhysicsOptions()):
             ox = 0.5 * vort[0] - omega[0]
             oy = 0.5 * vort[1] - omega[1]
             oz = 0.5 * vort[2] - omega[2]
-            om = math.sqrt(ox * ox + oy * oy + oz * oz)
+            om = om_slip if om_slip >= 0.0 else math.sqrt(ox * ox + oy * oy + oz * oz)
             re_r = rho_f * d * d * om / mu
             tau_r = fl.rotational_response_time(rho_p, d, mu, fl.torque_factor(re_r))
             er = -math.expm1(-dt / tau_r)
@@ -709,13 +711,12 @@ def make_tracker(options=PhysicsOptions()):
                         pos[0] = length
                 # ---- fields at x_{n+1}; Langevin update of the fluid velocity seen
                 ni, nj, nk = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
-                                         radius, nu, dvals)
+                                         radius, nu, dvals, cj)  # ring search from the last ring
                 if langevin:
                     src = dvals  # k, eps and grad k at the new position
                     sig2n = 2.0 * src[F_K] / 3.0
                     sign = math.sqrt(sig2n)
                     t_ln = C_T * sig2n / src[F_EPS]
-                    r_l = math.exp(-dt / t_ln)
                     dr2 = drx * drx + dry * dry + drz * drz
                     z0, z1 = next_normal_pair(rng_disp)
                     if have_spare:  # three normals per step from three pairs every two steps
@@ -724,21 +725,23 @@ def make_tracker(options=PhysicsOptions()):
                     else:
                         z2, spare = next_normal_pair(rng_disp)
                         have_spare = True
+                    # R_P,i = R_L R_E,i with R_L = exp(-dt/T_L), R_E,i = (f - g) dr_i^2/dr^2 + g,
+                    # f = exp(-dr/L_E), g = (1 - dr/(2 L_E)) f: one exponential for R_L f
                     if dr2 > 0.0:
                         dr = math.sqrt(dr2)
-                        l_e = C_L * t_ln * sign
-                        fr = math.exp(-dr / l_e)
-                        gr = (1.0 - 0.5 * dr / l_e) * fr
-                        fg = (fr - gr) / dr2
+                        h = 0.5 * dr / (C_L * t_ln * sign)  # dr / (2 L_E)
+                        rlf = math.exp(-dt / t_ln - 2.0 * h)
+                        gr = (1.0 - h) * rlf
+                        fg = h * rlf / dr2
                         re0 = fg * drx * drx + gr
                         re1 = fg * dry * dry + gr
                         re2 = fg * drz * drz + gr
                     else:
-                        re0 = 1.0
-                        re1 = 1.0
-                        re2 = 1.0
+                        re0 = math.exp(-dt / t_ln)
+                        re1 = re0
+                        re2 = re0
                     for c in range(3):
-                        rp = r_l * (re0 if c == 0 else (re1 if c == 1 else re2))
+                        rp = re0 if c == 0 else (re1 if c == 1 else re2)
                         zc = z0 if c == 0 else (z1 if c == 1 else z2)
                         un = rp * useen[c] + sign * math.sqrt(max(0.0, 1.0 - rp * rp)) * zc
                         if drift:
@@ -778,7 +781,7 @@ def make_tracker(options=PhysicsOptions()):
                     for c in range(3):
                         out[off_bud + B_WALL + c] += w_m * dv[c]
                     ci, cj, ck = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
-                                         radius, nu, fvals)
+                                             radius, nu, fvals, r_edges.shape[0] - 2)  # from the wall ring
                 # ---- inter-particle collision with a fictitious partner (previous pass's statistics)
                 if pp:
                     if ci >= 0:

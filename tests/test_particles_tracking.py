@@ -76,6 +76,30 @@ def test_fields_are_continuous_through_the_axis_and_exact_at_cell_centres():
     assert c[F_UX] == pytest.approx(gas.ux[0, 0].mean(), rel=1e-12)
 
 
+def test_ring_search_from_any_hint_gives_the_binary_search_result():
+    """The tracker finds the ring by stepping from the previous ring: the cell and every field
+    must equal those of the binary search (rans.locate_cell), bit for bit, for any hint."""
+    from particles.fields import NF, interpolate
+
+    mesh, gas = periodic_pipe()
+    tab = FieldTable.from_gas(mesh, gas)
+    rng = np.random.default_rng(3)
+    n = 400
+    r = mesh.radius * np.concatenate([np.sqrt(rng.random(n - 4)), [0.0, 1.0, 1.0 + 1e-6, 1.1]])
+    r[: len(mesh.r_edges)] = mesh.r_edges[: min(n, len(mesh.r_edges))]  # exactly on ring edges
+    th = 2 * np.pi * rng.random(n)
+    x = np.where(rng.random(n) < 0.05, -1e-3, rng.random(n) * mesh.length)
+    args = (tab.values, tab.axis, tab.x_centres, tab.r_centres, tab.r_edges, tab.length, tab.radius, tab.nu)
+    ref, got = np.empty(NF), np.empty(NF)
+    for p in range(n):
+        y, z = r[p] * np.sin(th[p]), r[p] * np.cos(th[p])
+        cell = interpolate(x[p], y, z, *args, ref)
+        assert cell == locate_cell(x[p], y, z, mesh.length, mesh.nx, mesh.r_edges, mesh.nt)
+        for hint in range(mesh.nr):
+            assert interpolate(x[p], y, z, *args, got, hint) == cell
+            np.testing.assert_array_equal(got, ref)
+
+
 def test_wall_cell_fields_follow_the_log_law_not_a_linear_ramp():
     mesh, gas = periodic_pipe()
     tab = FieldTable.from_gas(mesh, gas)
