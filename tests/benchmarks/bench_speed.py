@@ -7,7 +7,8 @@
 Parts (each printed as it finishes, then together in one table with the machine):
 
 * ``kernel``: particle kernel parcel-steps per second per core, full physics and drag +
-  gravity + Langevin + walls (``python -m particles.bench``: one thread, interleaved rounds,
+  gravity + Langevin + walls on the bench's one-station section, and the full physics on the
+  studies' 400 × 20 × 40 grid (``python -m particles.bench``: one thread, interleaved rounds,
   compile time apart).
 * ``gas``: gas-solve time per coupling pass on the base case's and on scene h's relaxed
   particle sources at the studies' grid (``tests/benchmarks/bench_gas_scene.py``; from the
