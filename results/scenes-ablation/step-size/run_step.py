@@ -15,7 +15,8 @@ out = Path(__file__).parent / f"{name}.nc"
 t = time.perf_counter()
 res = runs.execute(case, out, resume=True)
 m = extract_metrics(res.dataset, case)
-m.update(time=time.perf_counter() - t, converged=bool(res.dataset.attrs.get("converged", False)),
+stop = str(res.dataset.attrs.get("stop_reason", ""))
+m.update(time=time.perf_counter() - t, converged=stop.startswith("converged"), stop_reason=stop,
          passes=int(res.dataset.sizes.get("iteration", 0)))
 Path(out.with_suffix(".json")).write_text(json.dumps(m, indent=1, default=str))
 print(name, json.dumps({k: m[k] for k in ("cells", "sense", "strength", "interior", "dpdx", "k_axis", "coll_y", "converged", "passes", "time")}, default=str))
