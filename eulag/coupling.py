@@ -146,8 +146,9 @@ COLLISION_MOMENTUM_AHEAD = 10.0
 #: vanish as well: the net collision momentum / inflow of the last COLLISION_BALANCE_PASSES
 #: passes, their mean and their trend line's present value, within 3 standard errors of zero
 #: (``collision_momentum_balance``).  The returned
-#: acceleration is an integral controller, and the loop swings about the balance for tens of
-#: passes (the base case: −0.083 of the inflow at pass 10, +0.017 at pass 30, within ±0.004
+#: acceleration is an integral controller, and the loop swings about the balance while the
+#: partners' impulse drifts with the developing flow (the base case with the gain α of
+#: RETURNED_GAIN = 1: −0.083 of the inflow at pass 10, +0.017 at pass 30, within ±0.004
 #: from pass 51); the trend criterion alone is met at a turning point of the swing (pass 13,
 #: −dp/dx 67.8 Pa/m against the 63.3 it settles at).  A numerical choice of ours.
 COLLISION_BALANCE_PASSES = 10
@@ -160,6 +161,22 @@ STATISTICS_MEAN_WEIGHT = 0.5
 #: mass and its collision rate per unit mass fluctuate together), short enough to forget the
 #: loadings of the first passes (a cell that fills or empties as the flow develops).
 STATS_REFERENCE_PASSES = 20
+#: Gain of the returned partner momentum's integral control per pass, as a multiple of the
+#: loop's relaxation α (so 0.9 at α = 0.3; capped per cell at RETURNED_GAIN_CAP: CouplingLoop._next_statistics).  The
+#: partners' net impulse with nothing returned drifts with the developing coupled flow for
+#: about 20 passes (base-case proxy, 40 × 10 × 20 cells, 8,000 parcels: from +0.16 of the
+#: particles' axial momentum inflow at pass 2 to −0.024 at pass 25), and an integral control
+#: lags a drift by about drift / gain: with gain α the net collision momentum fell to −0.08
+#: of the inflow (pass 11) and the loop swung about the balance until it converged after pass
+#: 48; with 3α it converged after passes 28 and 30 (two seeds), with gain 2α after 47.  A
+#: numerical choice of ours.
+RETURNED_GAIN = 3.0
+#: Largest gain of one cell's update (CouplingLoop._next_statistics: the gain is RETURNED_GAIN α
+#: times the pass's number density over its reference, so a denser pass takes a larger step):
+#: 1.5 keeps 1 − gain within ±0.5.  A cap at 1 (a pass never moves a beyond its own a_new)
+#: clipped the denser passes of a cell whose mass fluctuates and left a net force (0.15 per
+#: pass in the fourfold-fluctuating cell of tests/test_symmetry_and_collision_momentum.py).
+RETURNED_GAIN_CAP = 1.5
 #: Apply the pass's part of the relaxed momentum source linearised in the gas velocity,
 #: α [S_pass + β (U_ref − U)] (module docstring, "Linearised drag"); False: the explicit
 #: relaxed source.
@@ -1155,7 +1172,7 @@ def _relax_statistics(old, new, alpha, n_ref=None):
         # The returned partner momentum a (physics.partner_momentum = "returned") as an integral
         # controller on the cell's net collision force: the pass ran with a_old and left the net
         # force F_net = W (a_old − a_new) (a_new = −F_jump/W of that pass, W its particle mass in
-        # the cell); a moves by −α F_net / W_ref, W_ref the mean mass of the earlier passes
+        # the cell); a moves by −g F_net / W_ref (g = RETURNED_GAIN α), W_ref the mean mass of the earlier passes
         # (n_ref, the mean of their number densities over a window of STATS_REFERENCE_PASSES passes;
         # the previous statistics' where it is not given), so
         # a only stops drifting where the net force vanishes in the mean.  The plain blend
@@ -1163,10 +1180,11 @@ def _relax_statistics(old, new, alpha, n_ref=None):
         # of F/W vanishes, which leaves a net force wherever a cell's mass and its collision rate
         # per unit mass fluctuate together from pass to pass; a reference that moves with the
         # recent passes (the relaxed number density) leaves a smaller one of the same kind.  The
-        # gain is at most 1 (a pass never moves a beyond its own a_new).
+        # gain is at most RETURNED_GAIN_CAP: a pass moves a beyond its own a_new by at most half
+        # the step (1 − gain stays within ±0.5, inside the integrator's bound 0 < gain < 2).
         sl = slice(CS_APP, CS_APP + 3)
         ref = old[both, CS_N] if n_ref is None else np.where(n_ref[both] > 0, n_ref[both], old[both, CS_N])
-        gain = np.minimum(alpha * new[both, CS_N] / ref, 1.0)
+        gain = np.minimum(RETURNED_GAIN * alpha * new[both, CS_N] / ref, RETURNED_GAIN_CAP)
         blend[:, sl] = old[both, sl] + gain[:, None] * (new[both, sl] - old[both, sl])
     blend[:, CS_OK] = 1.0
     out[both] = blend
