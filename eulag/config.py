@@ -499,8 +499,9 @@ class PhysicsConfig(_Section):
         collisions conserve momentum only while the partners' Gaussian law matches the cell's
         particles, which rebounds from a rough wall skew) or ``"returned"`` (the cell's
         particles receive an acceleration a spread over their residence time; the coupling
-        loop adjusts a from pass to pass by -alpha F_net / W_ref, F_net the cell's net
-        collision force and W_ref its mean particle mass over the earlier passes, so the net
+        loop adjusts a from pass to pass by -3 alpha F_net / W_ref (``coupling.RETURNED_GAIN``),
+        F_net the cell's net collision force and W_ref its mean particle mass over the earlier
+        passes, so the net
         collision force per cell vanishes in the mean at the coupled steady state;
         ``particles.PhysicsOptions``, ``eulag.coupling``).
     """
