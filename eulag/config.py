@@ -495,10 +495,11 @@ class PhysicsConfig(_Section):
         varies across the wall cell makes the collisions' net momentum non-zero).
     partner_momentum : str
         What becomes of the impulse the fictitious collision partners would receive:
-        ``"discarded"`` (default; Sommerfeld 2001, only the real particle is updated, so the
-        collisions conserve momentum only while the partners' Gaussian law matches the cell's
-        particles, which rebounds from a rough wall skew) or ``"returned"`` (the cell's
-        particles receive an acceleration a spread over their residence time; the coupling
+        ``"discarded"`` (Sommerfeld 2001 and the reference paper: only the real particle is
+        updated, so the collisions conserve momentum only while the partners' Gaussian law
+        matches the cell's particles, which rebounds from a rough wall skew) or ``"returned"``
+        (default; real collisions conserve momentum: the cell's particles receive an
+        acceleration a spread over their residence time; the coupling
         loop adjusts a from pass to pass by -3 alpha F_net / W_ref (``coupling.RETURNED_GAIN``),
         F_net the cell's net collision force and W_ref its mean particle mass over the earlier
         passes, so the net
@@ -529,7 +530,7 @@ class PhysicsConfig(_Section):
                                    default="seen-energy", choices=("seen-energy", "none"))
     partner_correlation: str = _param(STRING, "where the collision partner's correlation R(St) is taken",
                                       default="particle", choices=("particle", "cell"))
-    partner_momentum: str = _param(STRING, "the collision partners' impulse", default="discarded",
+    partner_momentum: str = _param(STRING, "the collision partners' impulse", default="returned",
                                    choices=("discarded", "returned"))
 
     def _resolve_and_check(self):
@@ -680,7 +681,7 @@ DEVIATIONS: dict[str, tuple[Any, Any, str]] = {
                             "shadow effect: the sin(alpha + gamma)-weighted pdf, or rejection of "
                             "alpha + gamma <= 0 (Sommerfeld & Huber 1999)"),
     "physics.k_source_scaling": ("seen-energy", "none", "S_k rescaled by k/k_seen per cell, or as sampled"),
-    "physics.partner_momentum": ("discarded", "discarded",
+    "physics.partner_momentum": ("returned", "discarded",
                                  "the fictitious partners' impulse: discarded (Sommerfeld 2001), or "
                                  "returned to the cell's particles"),
     "numerics.step_rule": ("default", "paper",
