@@ -853,9 +853,14 @@ class Case:
     @classmethod
     def from_attrs(cls, attrs: dict) -> "Case":
         """Rebuild a case from the flattened attributes of :meth:`to_attrs`, or from a dataset's
-        global attributes (``ds.attrs``, :func:`case_keys_from_dataset`)."""
+        global attributes (``ds.attrs``, :func:`case_keys_from_dataset`).  A key of
+        ``LATER_KEYS`` that the attributes lack (a result written before the key existed) takes
+        its earlier value, not today's default."""
         d: dict[str, Any] = {}
-        for key, value in case_keys_from_dataset(attrs).items():
+        keys = case_keys_from_dataset(attrs)
+        if any(k.partition(".")[0] == "physics" for k in keys):
+            keys = {**{k: v for k, v in LATER_KEYS.items() if k not in keys}, **keys}
+        for key, value in keys.items():
             if key in ("case.name", "case.description"):
                 d[key.split(".", 1)[1]] = _plain(value)
                 continue

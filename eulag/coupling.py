@@ -168,12 +168,16 @@ STATS_REFERENCE_PASSES = 20
 #: particles' axial momentum inflow at pass 2 to −0.024 at pass 25), and an integral control
 #: lags a drift by about drift / gain: with gain α the net collision momentum fell to −0.08
 #: of the inflow (pass 11) and the loop swung about the balance until it converged after pass
-#: 48; with 3α it converged after passes 28 and 30 (two seeds), with gain 2α after 47.  A
-#: numerical choice of ours.
+#: 48; with 3α after passes 29 and 30 (two seeds; 28 and 30 with a per-cell cap of 1), with
+#: gain 2α after 47.  A numerical choice of ours.
 RETURNED_GAIN = 3.0
-#: Largest gain of one cell's update (CouplingLoop._next_statistics: the gain is RETURNED_GAIN α
-#: times the pass's number density over its reference, so a denser pass takes a larger step):
-#: 1.5 keeps 1 − gain within ±0.5.  A cap at 1 (a pass never moves a beyond its own a_new)
+#: Largest base gain (before the n/n_ref factor), whatever α: 0.9, the value at α = 0.3.
+#: Above it the per-cell cap would bind on most denser passes and bias the mean net force
+#: again (the toy cell of tests/test_symmetry_and_collision_momentum.py at α = 0.5: +0.21).
+RETURNED_GAIN_MAX = 0.9
+#: Largest gain of one cell's update (CouplingLoop._next_statistics: the base gain times the
+#: pass's number density over its reference, so a denser pass takes a larger step): 1.5, so a
+#: pass moves a at most half the way beyond its own a_new.  A cap at 1 (a pass never moves a beyond its own a_new)
 #: clipped the denser passes of a cell whose mass fluctuates and left a net force (0.15 per
 #: pass in the fourfold-fluctuating cell of tests/test_symmetry_and_collision_momentum.py).
 RETURNED_GAIN_CAP = 1.5
@@ -807,7 +811,10 @@ class CouplingLoop:
                 "momentum, so this is the fictitious-partner model's error ("
                 + ('physics.partner_correlation = "cell" removes the part that comes from R(St) '
                    "varying inside a cell; " if self.case.physics.partner_correlation == "particle" else "")
-                + 'physics.partner_momentum = "returned" gives the partners\' impulse back to the cell)')
+                + ('physics.partner_momentum = "returned" gives the partners\' impulse back to the cell)'
+                   if self.case.physics.partner_momentum == "discarded" else
+                   "the partners' impulse is returned to the cell, but the net force it controls has "
+                   "not come down yet)"))
         if self.phase == "final":
             self._add_to_window(sample)
             if self.two_way:
@@ -1180,11 +1187,12 @@ def _relax_statistics(old, new, alpha, n_ref=None):
         # of F/W vanishes, which leaves a net force wherever a cell's mass and its collision rate
         # per unit mass fluctuate together from pass to pass; a reference that moves with the
         # recent passes (the relaxed number density) leaves a smaller one of the same kind.  The
-        # gain is at most RETURNED_GAIN_CAP: a pass moves a beyond its own a_new by at most half
-        # the step (1 − gain stays within ±0.5, inside the integrator's bound 0 < gain < 2).
+        # base gain min(RETURNED_GAIN α, RETURNED_GAIN_MAX) times n/n_ref, at most RETURNED_GAIN_CAP:
+        # a pass moves a beyond its own a_new by at most half the way (1 − gain within [−0.5, 1)).
         sl = slice(CS_APP, CS_APP + 3)
         ref = old[both, CS_N] if n_ref is None else np.where(n_ref[both] > 0, n_ref[both], old[both, CS_N])
-        gain = np.minimum(RETURNED_GAIN * alpha * new[both, CS_N] / ref, RETURNED_GAIN_CAP)
+        base = min(RETURNED_GAIN * alpha, RETURNED_GAIN_MAX)
+        gain = np.minimum(base * new[both, CS_N] / ref, RETURNED_GAIN_CAP)
         blend[:, sl] = old[both, sl] + gain[:, None] * (new[both, sl] - old[both, sl])
     blend[:, CS_OK] = 1.0
     out[both] = blend

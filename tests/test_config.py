@@ -237,3 +237,24 @@ def test_sections_construct_and_validate_directly():
     with pytest.raises(CaseError, match=r"^numerics\.azimuthal_cells = 10\.0: wrong type"):
         NumericsConfig(azimuthal_cells=10.0)
     assert PhysicsConfig(coupling="one-way").inter_particle_collisions is False
+
+
+def test_a_dataset_from_before_a_later_key_is_the_case_with_its_earlier_value():
+    """A result written before physics.partner_momentum and numerics.mirror_symmetry existed
+    ran with the partners' impulse discarded and without symmetry: rebuilt from its attributes
+    it is that case, not today's default (config.LATER_KEYS), so --resume does not take it
+    for a run of today's case."""
+    from eulag.config import CASES_DIR, LATER_KEYS, Case
+    from eulag.runs import same_case
+
+    today = Case.from_toml(CASES_DIR / "tsuji_morikawa_200um.toml")
+    assert today.physics.partner_momentum == "returned" and today.numerics.mirror_symmetry
+    old = {k: v for k, v in today.to_attrs().items() if k not in LATER_KEYS}
+    rebuilt = Case.from_attrs(old)
+    assert rebuilt.physics.partner_momentum == "discarded"
+    assert rebuilt.numerics.mirror_symmetry is False
+    assert not same_case(old, today)
+    earlier = today.replace(physics={"partner_momentum": "discarded", "partner_correlation": "particle"},
+                            numerics={"mirror_symmetry": False})
+    assert same_case(old, earlier)
+    assert same_case(today.to_attrs(), today)  # a dataset of today keeps every key

@@ -86,13 +86,16 @@ def test_ring_search_from_any_hint_gives_the_binary_search_result():
     rng = np.random.default_rng(3)
     n = 400
     r = mesh.radius * np.concatenate([np.sqrt(rng.random(n - 4)), [0.0, 1.0, 1.0 + 1e-6, 1.1]])
-    r[: len(mesh.r_edges)] = mesh.r_edges[: min(n, len(mesh.r_edges))]  # exactly on ring edges
+    ne = len(mesh.r_edges) + len(mesh.r)
+    r[:ne] = np.concatenate([mesh.r_edges, mesh.r])  # exactly on ring edges and centres (th = 0)
     th = 2 * np.pi * rng.random(n)
+    th[:ne] = 0.0
     x = np.where(rng.random(n) < 0.05, -1e-3, rng.random(n) * mesh.length)
+    x[ne:ne + 5] = mesh.length * np.array([1.0, 1.0 + 1e-9, 1.001, 0.0, 0.5])  # at and beyond the ends
     args = (tab.values, tab.axis, tab.x_centres, tab.r_centres, tab.r_edges, tab.length, tab.radius, tab.nu)
     ref, got = np.empty(NF), np.empty(NF)
     for p in range(n):
-        y, z = r[p] * np.sin(th[p]), r[p] * np.cos(th[p])
+        y, z = (0.0, r[p]) if th[p] == 0.0 else (r[p] * np.sin(th[p]), r[p] * np.cos(th[p]))
         cell = interpolate(x[p], y, z, *args, ref)
         assert cell == locate_cell(x[p], y, z, mesh.length, mesh.nx, mesh.r_edges, mesh.nt)
         for hint in range(mesh.nr):
