@@ -166,8 +166,8 @@ def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out, ri
     centres, r_edges (nr+1,), length [m], radius [m], nu [m2 s-1].  Points beyond r = R are
     treated as on the wall ring.  Returns the indices (i, j, k) of the cell holding the point,
     as ``rans.locate_cell`` computes them (i = -1 outside the pipe).  ``ring_hint``: a ring
-    near the point (the tracker passes the ring of the previous position), from which the ring
-    is found by stepping outward or inward instead of a binary search; the result is the
+    near the point (the tracker passes the ring of the previous position), from which
+    ``rans.mesh.cell_index`` steps to the ring instead of a binary search; the result is the
     same for any hint (-1: binary search).
     """
     nx = tab.shape[0]
@@ -206,22 +206,7 @@ def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out, ri
     if k1 == nt:
         k1 = 0
     r = math.sqrt(y * y + z * z)
-    if ring_hint < 0:
-        ci, cj, ck = cell_index(x, r, th, length, nx, r_edges, nt)
-    elif x < 0.0 or x > length or r > r_edges[nr]:
-        ci, cj, ck = -1, -1, -1
-    else:  # rans.mesh.cell_index with the ring stepped from the hint (same indices)
-        ci = int(x / length * nx)
-        if ci >= nx:
-            ci = nx - 1
-        cj = min(ring_hint, nr - 1)
-        while cj > 0 and r_edges[cj] > r:
-            cj -= 1
-        while cj < nr - 1 and r_edges[cj + 1] <= r:
-            cj += 1
-        ck = int(th / (2.0 * math.pi) * nt)
-        if ck >= nt:
-            ck = nt - 1
+    ci, cj, ck = cell_index(x, r, th, length, nx, r_edges, nt, ring_hint)
     dwx = 0.0 if (nx == 1 or wx <= 0.0 or wx >= 1.0) else 1.0 / (xc[1] - xc[0])
     dwt = nt / (2.0 * math.pi)  # d wt / d theta
     if r < rc[nr - 1]:

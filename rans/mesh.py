@@ -96,24 +96,33 @@ def radial_edges(radius, radial_cells, wall_thickness):
 
 
 @numba.njit(cache=True)
-def cell_index(x, r, th, length, nx, r_edges, nt):
+def cell_index(x, r, th, length, nx, r_edges, nt, ring_hint=-1):
     """Cell indices (i, j, k) of a point at axial x [m], radius r [m] and polar angle
     th in [0, 2 pi) [rad]; i = -1 outside the pipe.  Axial cells are uniform; ring j from a
-    binary search of ``r_edges``; sector k from th (uniform sectors starting at theta = 0)."""
+    binary search of ``r_edges``, or, given a ring near the point (``ring_hint`` >= 0, e.g. a
+    particle's ring of its previous step), by stepping from it (the same j for any hint);
+    sector k from th (uniform sectors starting at theta = 0)."""
     nr = r_edges.shape[0] - 1
     if x < 0.0 or x > length or r > r_edges[nr]:
         return -1, -1, -1
     i = int(x / length * nx)
     if i >= nx:
         i = nx - 1
-    lo = 0
-    hi = nr
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if r_edges[mid] <= r:
-            lo = mid
-        else:
-            hi = mid
+    if ring_hint >= 0:
+        lo = min(ring_hint, nr - 1)
+        while lo > 0 and r_edges[lo] > r:
+            lo -= 1
+        while lo < nr - 1 and r_edges[lo + 1] <= r:
+            lo += 1
+    else:
+        lo = 0
+        hi = nr
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if r_edges[mid] <= r:
+                lo = mid
+            else:
+                hi = mid
     k = int(th / (2.0 * math.pi) * nt)
     if k >= nt:
         k = nt - 1

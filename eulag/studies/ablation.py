@@ -34,8 +34,6 @@ ABLATION_SCENES = tuple("bdegh")
 #: and 8,000 in the final passes (about 1/80 of the scenes' cells and 1/30 of their parcels).
 PROXY_NUMERICS = {"axial_cells": 40, "radial_cells": 10, "azimuthal_cells": 20, "parcels": 8000,
                   "parcels_start": 4000, "batch_size": 250, "max_passes": 40}
-#: Alternatives tried where the paper's form is eulag's default (none at present).
-ALTERNATIVES: dict = {}
 
 
 def variants() -> list[tuple[str, dict]]:
@@ -43,10 +41,8 @@ def variants() -> list[tuple[str, dict]]:
     out = [("eulag", {})]
     for key, (ours, paper, _) in DEVIATIONS.items():
         section, leaf = key.split(".")
-        alt = paper if paper != ours else ALTERNATIVES.get(key)
-        if alt is None:
-            continue
-        out.append((f"{leaf}={_text(alt)}", {section: {leaf: alt}}))
+        if paper != ours:
+            out.append((f"{leaf}={_text(paper)}", {section: {leaf: paper}}))
     out.append(("paper", PAPER_MODEL))
     return out
 
