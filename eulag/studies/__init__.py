@@ -106,11 +106,12 @@ def add_arguments(parser) -> None:
     p.set_defaults(func=_entry(study_scenes))
 
     p = sub.add_parser("scenes-ablation", help="each departure from the reference paper's model switched "
-                                               "alone, on proxies of scenes b, d, e, g, h")
-    _common(p, "scenes-ablation", only="comma-separated scenes, e.g. b,d (default: b,d,e,g,h)")
+                                               "alone, on proxies of scenes b, c, d, e, g, h")
+    _common(p, "scenes-ablation", only="comma-separated scenes, e.g. b,d (default: b,c,d,e,g,h)")
     p.add_argument("--variants", metavar="LIST",
-                   help="comma-separated variants (default: all; eulag study scenes-ablation --help lists "
-                        "them in the output table)")
+                   help="comma-separated variants (default: every departure and 'paper'; also "
+                        "saffman_mei_lift=false, magnus_lift=false, langevin_drift_correction=false; "
+                        "the output table lists the labels)")
     p.set_defaults(func=_entry(study_scenes_ablation))
 
     p = sub.add_parser("error-runtime", help="error of the section profiles against wall time "

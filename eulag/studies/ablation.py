@@ -1,7 +1,8 @@
 """The ablation of eulag's departures from the reference paper's model (``eulag study
 scenes-ablation``): each departure of :data:`eulag.config.DEVIATIONS` switched alone, and all
 together (``profile = "paper"``), on proxies of the scenes whose pattern decides between the
-models (b, d, h: four cells in the paper; e, g: two cells and their strength).
+models (b, d, h: four cells in the paper; c, e, g: two cells, c and g without inter-particle
+collisions, where the paper's pair turns up on the axis; e, g: their strength).
 
 A proxy is the scene's case file on a coarse grid with fewer parcels (:data:`PROXY_NUMERICS`):
 the same pipe, station, particles and wall, so that one run takes minutes, not hours.  The
@@ -13,7 +14,9 @@ the full-resolution runs; what the table shows is which model ingredient moves t
 Variants (one run per scene each): ``eulag`` (the defaults); ``<key>=<paper's form>`` for every
 departure whose paper form differs from the default (among them ``partner_momentum=discarded``,
 the fictitious partners of Sommerfeld 2001, since the momentum-returning treatment became the
-default); ``paper`` (every departure at the paper's form).  The committed table
+default; left out for the two-way scenes, which have no collisions); ``paper`` (every departure
+at the paper's form); on request (``--variants``) also the ingredients of
+:data:`INGREDIENT_VARIANTS` switched off.  The committed table
 (results/scenes-ablation) was run while the default was the discarded impulse, with
 ``partner_momentum=returned`` as an extra variant at the returned impulse's earlier gain α.
 """
@@ -25,25 +28,44 @@ from pathlib import Path
 
 from eulag.config import DEVIATIONS, PAPER_MODEL, CASES_DIR, Case, CaseError
 
-from .patterns import PAPER_PATTERN, pattern_columns
+from .patterns import PAPER_PATTERN, PAPER_SENSE, pattern_columns
 from .report import Column, _run_cells, _run_columns, _settings_text, write_report
 from .runner import _BadInput, _finish, _quick, _select, _with_parcels, run_case
 
-ABLATION_SCENES = tuple("bdegh")
+ABLATION_SCENES = tuple("bcdegh")
 #: The proxies' numerics: the studies' pipe on a 40 x 10 x 20 grid, 4,000 parcels in the early
 #: and 8,000 in the final passes (about 1/80 of the scenes' cells and 1/30 of their parcels).
 PROXY_NUMERICS = {"axial_cells": 40, "radial_cells": 10, "azimuthal_cells": 20, "parcels": 8000,
                   "parcels_start": 4000, "batch_size": 250, "max_passes": 40}
 
 
-def variants() -> list[tuple[str, dict]]:
-    """(label, changes for Case.replace) of every ablation variant, in the table's order."""
+#: Model ingredients that are not departures from the paper, switched off on request
+#: (``--variants``) to find which one decides a pattern: the lift forces and the drift correction
+#: of the Langevin model.  Not in the default set.
+INGREDIENT_VARIANTS: tuple[tuple[str, dict], ...] = (
+    ("saffman_mei_lift=false", {"physics": {"saffman_mei_lift": False}}),
+    ("magnus_lift=false", {"physics": {"magnus_lift": False}}),
+    ("langevin_drift_correction=false", {"physics": {"langevin_drift_correction": False}}),
+)
+#: Departures that only act through the inter-particle collisions (skipped for two-way scenes,
+#: where they would repeat the ``eulag`` row).
+_COLLISION_ONLY = ("physics.partner_momentum",)
+
+
+def variants(case: Case | None = None, ingredients: bool = False) -> list[tuple[str, dict]]:
+    """(label, changes for Case.replace) of every ablation variant, in the table's order.
+
+    ``case``: the scene's case; a departure that acts only through the inter-particle collisions
+    is left out when the case has none.  ``ingredients``: also :data:`INGREDIENT_VARIANTS`."""
+    collisions = case is None or case.physics.inter_particle_collisions
     out = [("eulag", {})]
     for key, (ours, paper, _) in DEVIATIONS.items():
         section, leaf = key.split(".")
-        if paper != ours:
+        if paper != ours and (collisions or key not in _COLLISION_ONLY):
             out.append((f"{leaf}={_text(paper)}", {section: {leaf: paper}}))
     out.append(("paper", PAPER_MODEL))
+    if ingredients:
+        out.extend(INGREDIENT_VARIANTS)
     return out
 
 
@@ -59,7 +81,7 @@ def ablation_cases(quick: bool, scenes=ABLATION_SCENES, labels=None,
     for s in scenes:
         base = Case.from_toml(CASES_DIR / "scenes" / f"scene_{s}.toml")
         base = _quick(base) if quick else base.replace(numerics=PROXY_NUMERICS)
-        for label, changes in variants():
+        for label, changes in variants(base, ingredients=labels is not None):
             if labels is not None and label not in labels:
                 continue
             name = f"proxy_{s}__{label.replace('=', '-')}"
@@ -110,7 +132,7 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
     names = _select(getattr(args, "only", None), list(ABLATION_SCENES), "scenes")
     labels = None
     if getattr(args, "variants", None):
-        known = [v for v, _ in variants()]
+        known = [v for v, _ in variants(ingredients=True)]
         labels = [v.strip() for v in args.variants.split(",") if v.strip()]
         bad = [v for v in labels if v not in known]
         if bad:
@@ -134,7 +156,8 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
                                                         "k_axis")},
                      "coll_y": (f"{coll:+.2g} ± {coll_se:.1g}" if coll is not None and math.isfinite(coll)
                                 else None),
-                     "matches": _matches(rec.metrics.get("cells"), rec.metrics.get("sense"), paper_cells),
+                     "matches": _matches(rec.metrics.get("cells"), rec.metrics.get("sense"), paper_cells,
+                                         PAPER_SENSE.get(scene)),
                      **_run_cells(rec)})
     columns = [Column("scene", "scene"), Column("variant", "variant"), Column("paper", "paper's pattern"),
                Column("pattern_cells_sym", "cells (symmetrised; replica agreement)"),
@@ -143,7 +166,7 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
                Column("strength", "strength [% U0]", "{:.3g}"), Column("interior", "interior max [% U0]", "{:.3g}"),
                Column("peak_ratio", "ψ upper/lower", "{:.2f}"), Column("dpdx", "-dp/dx [Pa/m]", "{:.4g}"),
                Column("k_axis", "axis k / single-phase", "{:.2f}"),
-               Column("coll_y", "collision force y [N]"), Column("matches", "cell count as the paper"),
+               Column("coll_y", "collision force y [N]"), Column("matches", "pattern as the paper"),
                *_run_columns()]
     intro = [
         "Each departure of eulag's model from the reference paper's (`eulag.config.DEVIATIONS`; "
@@ -171,7 +194,11 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
     return _finish(args, outdir, records, allowed_failures=True)
 
 
-def _matches(cells, sense, paper_cells) -> str | None:
+def _matches(cells, sense, paper_cells, paper_sense=None) -> str | None:
+    """"yes" when the cell count is the paper's and, where the paper states it, the main pair's
+    sense too; "no (sense)" when only the sense differs."""
     if cells is None:
         return None
-    return "yes" if int(cells) == paper_cells else "no"
+    if int(cells) != paper_cells:
+        return "no"
+    return "no (sense)" if paper_sense is not None and sense != paper_sense else "yes"

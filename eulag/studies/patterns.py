@@ -10,13 +10,16 @@ from .report import Column
 PAPER_PATTERN = {
     "a": (2, "2 fairly symmetric cells, ≈ 0.2 % of U0"),
     "b": (4, "4 cells, saddle near the centre"),
-    "c": (2, "2 cells"),
+    "c": (2, "2 cells, up on the axis"),
     "d": (4, "4 cells, upper pair smaller"),
     "e": (2, "2 large cells, ≈ 1 % of U0"),
     "f": (2, "2 cells and an incipient upper cell"),
-    "g": (2, "2 very clear cells, ≈ 2.5 % of U0"),
+    "g": (2, "2 very clear cells, ≈ 2.5 % of U0, up on the axis"),
     "h": (4, "4 cells (two upper cells appear)"),
 }
+#: The main pair's sense where the paper states it: without inter-particle collisions (two-way
+#: scenes) the pair turns up near the vertical axis and down near the side walls.
+PAPER_SENSE = {"c": "up on the axis", "g": "up on the axis"}
 #: the pattern metrics of a scene row (eulag.analysis.pattern_metrics on the mirror-symmetrised
 #: section, error bars from the replicas of the final passes where the dataset has them)
 PATTERN_KEYS = ("cells_sym", "index", "uy_pattern", "sense", "interior", "coll")
