@@ -600,3 +600,21 @@ def test_a_run_failing_after_a_resume_keeps_its_earlier_passes(tmp_path):
     fresh = {"residual_history": [1.0], "relaxation_history": [0.3]}
     assert _resumed_part(ckpt, [SimpleNamespace(index=1)], fresh) == (0.0, 0)  # nothing resumed
     assert fresh["residual_history"] == [1.0]
+
+
+def test_ablation_variants_follow_the_scene():
+    """A two-way proxy gets no collision-only variant; ingredient switches only on request; the
+    two-way scenes' match column also checks the paper's sense of the main pair."""
+    from eulag.studies.ablation import _matches, ablation_cases
+
+    two_way = [label for _, _, label, _ in ablation_cases(False, "c")]
+    four_way = [label for _, _, label, _ in ablation_cases(False, "d")]
+    assert "partner_momentum=discarded" in four_way and "partner_momentum=discarded" not in two_way
+    assert two_way[0] == "eulag" and two_way[-1] == "paper"
+    assert not any("lift" in label for label in four_way)
+    [(_, _, label, case)] = ablation_cases(False, "c", ["magnus_lift=false"])
+    assert label == "magnus_lift=false" and case.physics.magnus_lift is False
+    assert _matches(2, "down on the axis", 2, "up on the axis") == "no (sense)"
+    assert _matches(2, "up on the axis", 2, "up on the axis") == "yes"
+    assert _matches(4, "up on the axis", 2, "up on the axis") == "no"
+    assert _matches(4, "down on the axis", 4) == "yes"
