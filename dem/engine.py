@@ -9,9 +9,14 @@ State arrays (N grains, capacity grows in the driver):
 Coordinates: x along the tube axis (0 ≤ x < L inside the tube, the feed zone x < 0), y, z in the
 cross-section, tube wall at sqrt(y² + z²) = R_t.
 
-Determinism: the cell list is a counting sort in grain order; the force kernel is a ``prange``
-over grains in which grain i sums the forces from its neighbours in a fixed order (cells in a
-fixed order, grains in each cell by index) and writes only row i.  Each pair force is therefore
+Neighbours: a Verlet list (pairs closer than (1 + SKIN) d) built from a cell list after the first
+drift of every call of :func:`dem_step` and whenever a grain has moved more than half the skin
+since; the force kernel reads the list instead of searching the 27 cells every step.
+
+Determinism: the cell list is a counting sort in grain order; the Verlet list is built serially
+in a fixed order (cells in a fixed order, grains in each cell by index); the force kernel is a
+``prange`` over grains in which grain i sums the forces from its listed neighbours in that order
+and writes only row i.  Each pair force is therefore
 computed twice (once for each partner) — the price of having no shared ``+=`` — and the two
 evaluations are exact negatives of each other (:func:`dem.contacts.contact`).  The result is
 the same bit for bit for any number of threads.
@@ -95,14 +100,76 @@ def build_cells(pos, status, x0, hx, ncx, ht, nct, tube_r, periodic, length, cel
             cursor[c] += 1
 
 
-def _contact_forces(pos, vel, omg, status, cell_start, items, x0, hx, ncx, ht, nct, periodic, length,
+@njit(**JIT_FLAGS)
+def build_neighbours(pos, status, cell_start, items, x0, hx, ncx, ht, nct, periodic, length, tube_r, reach2,
+                     nbr_start, nbr):
+    """Verlet list: for every non-GONE grain i the grains j ≠ i closer than the reach (d + skin).
+
+    Written as compressed rows: the neighbours of i are ``nbr[nbr_start[i]:nbr_start[i + 1]]``,
+    in the order of the cell search (cells in a fixed order, grains of a cell by index).  Needs
+    the cells of :func:`build_cells` with sides ≥ the reach.  Returns the number of entries, or
+    −1 when ``nbr`` is too short (the caller enlarges it and calls again).
+    """
+    n = pos.shape[0]
+    m = 0
+    cap = nbr.shape[0]
+    for i in range(n):
+        nbr_start[i] = m
+        if status[i] == GONE:
+            continue
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        zi = pos[i, 2]
+        cix = _cell_x(xi, x0, hx, ncx, periodic, length)
+        ciy = _cell_t(yi, tube_r, ht, nct)
+        ciz = _cell_t(zi, tube_r, ht, nct)
+        for ddx in range(-1, 2):
+            cx = cix + ddx
+            if periodic:
+                if cx < 0:
+                    cx += ncx
+                elif cx >= ncx:
+                    cx -= ncx
+            elif cx < 0 or cx >= ncx:
+                continue
+            for ddy in range(-1, 2):
+                cy = ciy + ddy
+                if cy < 0 or cy >= nct:
+                    continue
+                for ddz in range(-1, 2):
+                    cz = ciz + ddz
+                    if cz < 0 or cz >= nct:
+                        continue
+                    c = (cx * nct + cy) * nct + cz
+                    for k in range(cell_start[c], cell_start[c + 1]):
+                        j = items[k]
+                        if j == i:
+                            continue
+                        rx = xi - pos[j, 0]
+                        if periodic:
+                            if rx > 0.5 * length:
+                                rx -= length
+                            elif rx < -0.5 * length:
+                                rx += length
+                        ry = yi - pos[j, 1]
+                        rz = zi - pos[j, 2]
+                        if rx * rx + ry * ry + rz * rz < reach2:
+                            if m >= cap:
+                                return -1
+                            nbr[m] = j
+                            m += 1
+    nbr_start[n] = m
+    return m
+
+
+def _contact_forces(pos, vel, omg, status, nbr_start, nbr, periodic, length,
                    radius, tube_r, plate_x, k_n, gn_pp, gt_pp, mu_pp, gn_pw, gt_pw, mu_pw,
                    force, torque, overlap, wall_fn):
     """Contact force and torque on every grain (pairs, cylinder wall, optional plate at x = plate_x).
 
-    plate_x = NaN: no plate.  Writes force, torque [N, N m], overlap (largest overlap of the grain
-    [m]) and wall_fn (sum of the cylinder-wall normal forces on the grain [N]).  One row per grain:
-    race-free.
+    Pairs from the Verlet list (:func:`build_neighbours`).  plate_x = NaN: no plate.  Writes force,
+    torque [N, N m], overlap (largest overlap of the grain [m]) and wall_fn (sum of the
+    cylinder-wall normal forces on the grain [N]).  One row per grain: race-free.
     """
     n = pos.shape[0]
     d = 2.0 * radius
@@ -121,57 +188,34 @@ def _contact_forces(pos, vel, omg, status, cell_start, items, x0, hx, ncx, ht, n
             xi = pos[i, 0]
             yi = pos[i, 1]
             zi = pos[i, 2]
-            cix = _cell_x(xi, x0, hx, ncx, periodic, length)
-            ciy = _cell_t(yi, tube_r, ht, nct)
-            ciz = _cell_t(zi, tube_r, ht, nct)
-            for ddx in range(-1, 2):
-                cx = cix + ddx
+            for k in range(nbr_start[i], nbr_start[i + 1]):
+                j = nbr[k]
+                rx = xi - pos[j, 0]
                 if periodic:
-                    if cx < 0:
-                        cx += ncx
-                    elif cx >= ncx:
-                        cx -= ncx
-                elif cx < 0 or cx >= ncx:
+                    if rx > 0.5 * length:
+                        rx -= length
+                    elif rx < -0.5 * length:
+                        rx += length
+                ry = yi - pos[j, 1]
+                rz = zi - pos[j, 2]
+                r2 = rx * rx + ry * ry + rz * rz
+                if r2 >= d2 or r2 == 0.0:
                     continue
-                for ddy in range(-1, 2):
-                    cy = ciy + ddy
-                    if cy < 0 or cy >= nct:
-                        continue
-                    for ddz in range(-1, 2):
-                        cz = ciz + ddz
-                        if cz < 0 or cz >= nct:
-                            continue
-                        c = (cx * nct + cy) * nct + cz
-                        for k in range(cell_start[c], cell_start[c + 1]):
-                            j = items[k]
-                            if j == i:
-                                continue
-                            rx = xi - pos[j, 0]
-                            if periodic:
-                                if rx > 0.5 * length:
-                                    rx -= length
-                                elif rx < -0.5 * length:
-                                    rx += length
-                            ry = yi - pos[j, 1]
-                            rz = zi - pos[j, 2]
-                            r2 = rx * rx + ry * ry + rz * rz
-                            if r2 >= d2 or r2 == 0.0:
-                                continue
-                            dist = math.sqrt(r2)
-                            delta = d - dist
-                            if delta > omax:
-                                omax = delta
-                            a, b, cc, e, f, g, fn = contact(
-                                rx / dist, ry / dist, rz / dist, delta,
-                                vel[i, 0] - vel[j, 0], vel[i, 1] - vel[j, 1], vel[i, 2] - vel[j, 2],
-                                omg[i, 0] + omg[j, 0], omg[i, 1] + omg[j, 1], omg[i, 2] + omg[j, 2],
-                                radius, k_n, gn_pp, gt_pp, mu_pp)
-                            fx += a
-                            fy += b
-                            fz += cc
-                            tx += e
-                            ty += f
-                            tz += g
+                dist = math.sqrt(r2)
+                delta = d - dist
+                if delta > omax:
+                    omax = delta
+                a, b, cc, e, f, g, fn = contact(
+                    rx / dist, ry / dist, rz / dist, delta,
+                    vel[i, 0] - vel[j, 0], vel[i, 1] - vel[j, 1], vel[i, 2] - vel[j, 2],
+                    omg[i, 0] + omg[j, 0], omg[i, 1] + omg[j, 1], omg[i, 2] + omg[j, 2],
+                    radius, k_n, gn_pp, gt_pp, mu_pp)
+                fx += a
+                fy += b
+                fz += cc
+                tx += e
+                ty += f
+                tz += g
             # cylinder wall
             rr = math.sqrt(yi * yi + zi * zi)
             delta = rr + radius - tube_r
@@ -259,12 +303,22 @@ drift_serial = njit(**JIT_FLAGS)(_drift)
 
 def _make_run_steps(cf, kk, dr):
     def run_steps(nsteps, pos, vel, omg, force, torque, status, gas_force, vp, wp, items, overlap, wall_fn,
-                  cell_start, x0, hx, ncx, ht, nct, periodic, length, radius, tube_r, plate_x, k_n,
-                  gn_pp, gt_pp, mu_pp, gn_pw, gt_pw, mu_pw, gx, gy, gz, mass, inertia, dt, v_feed):
-        """``nsteps`` velocity-Verlet steps (see :func:`dem_step`); returns the largest overlap [m]."""
+                  pos_ref, cell_start, x0, hx, ncx, ht, nct, periodic, length, radius, tube_r, skin, plate_x,
+                  k_n, gn_pp, gt_pp, mu_pp, gn_pw, gt_pw, mu_pw, gx, gy, gz, mass, inertia, dt, v_feed):
+        """``nsteps`` velocity-Verlet steps (see :func:`dem_step`); returns the largest overlap [m].
+
+        The Verlet list is built after the first drift and again whenever a grain has moved more
+        than skin/2 since (two grains then cannot have closed more than the skin: no contact is
+        missed)."""
         h = 0.5 * dt
         omax = 0.0
         n = pos.shape[0]
+        reach = 2.0 * radius + skin
+        reach2 = reach * reach
+        lim2 = 0.25 * skin * skin
+        nbr_start = np.zeros(n + 1, dtype=np.int64)
+        nbr = np.empty(16 * n + 64, dtype=np.int64)
+        stale = True
         for _ in range(nsteps):
             kk(vel, omg, status, force, torque, gas_force, gx, gy, gz, mass, inertia, h)
             dr(pos, vel, omg, status, dt, v_feed)
@@ -276,8 +330,29 @@ def _make_run_steps(cf, kk, dr):
                     vp[i, q] = vel[i, q]
                     wp[i, q] = omg[i, q]
             kk(vp, wp, status, force, torque, gas_force, gx, gy, gz, mass, inertia, h)
-            build_cells(pos, status, x0, hx, ncx, ht, nct, tube_r, periodic, length, cell_start, items)
-            cf(pos, vp, wp, status, cell_start, items, x0, hx, ncx, ht, nct, periodic, length, radius, tube_r,
+            if not stale:
+                for i in range(n):
+                    ex = pos[i, 0] - pos_ref[i, 0]
+                    if periodic:
+                        if ex > 0.5 * length:
+                            ex -= length
+                        elif ex < -0.5 * length:
+                            ex += length
+                    ey = pos[i, 1] - pos_ref[i, 1]
+                    ez = pos[i, 2] - pos_ref[i, 2]
+                    if ex * ex + ey * ey + ez * ez > lim2:
+                        stale = True
+                        break
+            if stale:
+                build_cells(pos, status, x0, hx, ncx, ht, nct, tube_r, periodic, length, cell_start, items)
+                while build_neighbours(pos, status, cell_start, items, x0, hx, ncx, ht, nct, periodic, length,
+                                       tube_r, reach2, nbr_start, nbr) < 0:
+                    nbr = np.empty(2 * nbr.shape[0], dtype=np.int64)
+                for i in range(n):
+                    for q in range(3):
+                        pos_ref[i, q] = pos[i, q]
+                stale = False
+            cf(pos, vp, wp, status, nbr_start, nbr, periodic, length, radius, tube_r,
                plate_x, k_n, gn_pp, gt_pp, mu_pp, gn_pw, gt_pw, mu_pw, force, torque, overlap, wall_fn)
             kk(vel, omg, status, force, torque, gas_force, gx, gy, gz, mass, inertia, h)
             for i in range(n):
@@ -373,19 +448,26 @@ class ContactModel:
         self.t_contact = contact_time(restitution, stiffness, 0.5 * self.mass)
 
 
-class CellGrid:
-    """Cell-list geometry: cells ≥ one grain diameter on a side covering [x0, x1) × the tube."""
+#: Skin of the Verlet list [grain diameters]: pairs closer than (1 + SKIN) d are listed.
+SKIN = 0.2
 
-    def __init__(self, x0, x1, tube_r, diameter, periodic=False):
+
+class CellGrid:
+    """Cell-list geometry: cells ≥ the Verlet reach (1 + skin) d on a side covering [x0, x1) × the tube."""
+
+    def __init__(self, x0, x1, tube_r, diameter, periodic=False, skin=SKIN):
         self.periodic = bool(periodic)
         self.length = x1 - x0
         self.x0 = x0
-        self.ncx = max(1, int(math.floor(self.length / diameter)))
+        self.skin = skin * diameter
+        reach = diameter + self.skin
+        self.ncx = max(1, int(math.floor(self.length / reach)))
         if periodic and self.ncx < 3:
-            raise ValueError(f"tube.length_m = {self.length}: allowed >= 3 grain diameters for a periodic tube")
+            raise ValueError(f"tube.length_m = {self.length}: allowed >= {3 * reach:.4g} m (three cells of the "
+                             f"neighbour search, 3 (1 + skin) grain diameters) for a periodic tube")
         self.hx = self.length / self.ncx
         self.tube_r = tube_r
-        self.nct = max(1, int(math.floor(2 * tube_r / diameter)))
+        self.nct = max(1, int(math.floor(2 * tube_r / reach)))
         self.ht = 2 * tube_r / self.nct
         self.cell_start = np.zeros(self.ncx * self.nct * self.nct + 1, dtype=np.int64)
 
@@ -402,13 +484,13 @@ def dem_step(g, model, grid, gas_force, gravity, dt, v_feed, plate_x, work, nste
     if work.get("n", -1) < n:
         cap = len(g.status)
         work.update(items=np.zeros(cap, dtype=np.int64), overlap=np.zeros(cap), wall_fn=np.zeros(cap),
-                    vp=np.zeros((cap, 3)), wp=np.zeros((cap, 3)), n=cap)
+                    vp=np.zeros((cap, 3)), wp=np.zeros((cap, 3)), pos_ref=np.zeros((cap, 3)), n=cap)
     if n == 0:
         return 0.0
     run = run_steps_parallel if parallel else run_steps_serial
     return run(nsteps, g.pos[:n], g.vel[:n], g.omg[:n], g.force[:n], g.torque[:n], g.status[:n], gas_force[:n],
                work["vp"][:n], work["wp"][:n], work["items"][:n], work["overlap"][:n], work["wall_fn"][:n],
-               grid.cell_start, grid.x0, grid.hx, grid.ncx, grid.ht, grid.nct, grid.periodic, grid.length,
-               model.radius, grid.tube_r, plate_x, model.k_n, model.gn_pp, model.gt_pp, model.mu_pp, model.gn_pw,
+               work["pos_ref"][:n], grid.cell_start, grid.x0, grid.hx, grid.ncx, grid.ht, grid.nct, grid.periodic,
+               grid.length, model.radius, grid.tube_r, grid.skin, plate_x, model.k_n, model.gn_pp, model.gt_pp, model.mu_pp, model.gn_pw,
                model.gt_pw, model.mu_pw, float(gravity[0]), float(gravity[1]), float(gravity[2]), model.mass,
                model.inertia, dt, v_feed)
