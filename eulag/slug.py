@@ -34,6 +34,13 @@ Entry points (called by the run layer for cases with ``model = "dem-darcy"``):
 Checkpoints: every ``numerics.checkpoint_interval_s`` of simulated time the whole state goes
 to ``<out>.checkpoint`` (written to a temporary file, then renamed); ``resume=True`` continues
 from it and gives the same result, bit for bit, as an uninterrupted run.
+
+Continued runs: ``initial.state`` names a state (:func:`save_state` of a checkpoint, or the
+checkpoint itself) of a case with the same tube, feed, grains' size and density, gas grid and
+step (:data:`STATE_KEYS`); the run starts from its grains, gas and time with its own friction,
+restitution, stiffness, gas viscosity and superficial velocity — a filled tube for parameter
+studies instead of the ≈ 6 s of filling from an empty one.  ``numerics.end_time_s`` stays
+absolute.
 """
 
 from __future__ import annotations
@@ -46,7 +53,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "gas_force_on_grains", "dataset_from_checkpoint", "DEFAULTS", "SLUG_POROSITY"]
+__all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "gas_force_on_grains", "dataset_from_checkpoint",
+           "save_state", "read_state", "state_time", "DEFAULTS", "SLUG_POROSITY"]
 
 #: Slug criterion of the catalogue: slices (gas cells along x) with porosity below this.
 SLUG_POROSITY = 0.6
@@ -61,7 +69,7 @@ DEFAULTS = {
     "gas": {"pressure_Pa": 101325.0, "viscosity_Pa_s": 6.73e-5, "superficial_velocity_m_s": 1.0,
             "inlet": "flux", "permeability_cap_m2": 0.0},
     "feed": {"mass_flow_kg_h": 2.49, "porosity": 0.57, "block_length_m": 0.014},
-    "initial": {"plug_length_m": 0.0, "plug_start_m": 0.0},
+    "initial": {"plug_length_m": 0.0, "plug_start_m": 0.0, "state": ""},
     "numerics": {"cells_x": 150, "cells_across": 2, "steps_per_contact": 30, "gas_dt_s": 1e-4, "theta": 1.0,
                  "end_time_s": 4.0, "output_interval_s": 0.01, "checkpoint_interval_s": 0.5, "seed": 1,
                  "min_solid_fraction_force": 0.05, "parallel": False},
@@ -71,6 +79,7 @@ _CHOICES = {("tube", "orientation"): ("horizontal", "vertical"), ("gas", "inlet"
 _INTS = {("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "steps_per_contact"),
          ("numerics", "seed")}
 _BOOLS = {("tube", "periodic"), ("numerics", "parallel")}
+_STRINGS = {("initial", "state")}
 # (low, high, low inclusive?) for the numbers
 _RANGES = {
     ("grains", "friction"): (0.0, 10.0, True), ("grains", "wall_friction"): (0.0, 10.0, True),
@@ -108,7 +117,10 @@ def validate_slug_case(case: dict) -> dict:
         res = {}
         for k, default in keys.items():
             v = given.get(k, default)
-            if (sec, k) in _BOOLS:
+            if (sec, k) in _STRINGS:
+                if not isinstance(v, str):
+                    raise _bad(sec, k, v, "a string (a file path; \"\" for none)")
+            elif (sec, k) in _BOOLS:
                 if not isinstance(v, bool):
                     raise _bad(sec, k, v, "true or false")
             elif (sec, k) in _CHOICES:
@@ -138,6 +150,11 @@ def validate_slug_case(case: dict) -> dict:
         raise _bad("numerics", "gas_dt_s", n["gas_dt_s"], f"<= numerics.output_interval_s ({n['output_interval_s']})")
     if n["output_interval_s"] > n["end_time_s"]:
         raise _bad("numerics", "output_interval_s", n["output_interval_s"], "<= numerics.end_time_s")
+    if out["initial"]["state"] and t["periodic"]:
+        raise _bad("initial", "state", out["initial"]["state"], "\"\" for a periodic tube (its initial plug is "
+                   "initial.plug_length_m)")
+    if out["initial"]["state"]:
+        read_state(out["initial"]["state"], out)  # the file, its case and the end time, before any work
     if t["periodic"]:
         if out["initial"]["plug_length_m"] <= 0:
             raise _bad("initial", "plug_length_m", out["initial"]["plug_length_m"], "> 0 for a periodic tube")
@@ -419,6 +436,22 @@ class _Simulation:
         self.phi, self.u = st["phi"], st["u"]
         self.work = {}
 
+    def start_from(self, st):
+        """Continue from a saved state (a checkpoint or :func:`save_state` file of a compatible
+        case) with this case's parameters: grains, gas and time from the state; records,
+        outflow, losses and the overlap maximum start afresh."""
+        from dem import Grains
+        self.grains = Grains.from_state({k[2:]: st[k] for k in st if k.startswith("g_")})
+        self.darcy.load_state({"p": st["d_p"], "G": st["d_G"]})
+        n = self.grains.n
+        self.gas_force = np.zeros((len(self.grains.status), 3))
+        self.gas_force[:n] = st["gas_force"]
+        scal = json.loads(str(st["scalars"]))
+        self.gas_step, self.next_gid = scal["gas_step"], scal["next_gid"]
+        self.feed.next_block = scal["next_block"]
+        self.phi, self.u = st["phi"], st["u"]
+        self.work = {}
+
     # --------------------------------------------------------------- dataset
     def dataset(self):
         import xarray as xr
@@ -513,6 +546,73 @@ def checkpoint_problem(ckpt, case: dict):
     return None if key == _checkpoint_key(validate_slug_case(case)) else "checkpoint of a different case"
 
 
+#: Keys a continued run (``initial.state``) must share with the case that wrote the state: the
+#: geometry, the grains' size and density, the feed (its schedule continues) and the gas grid
+#: and step.  Friction, restitution, stiffness, gas viscosity, pressure and v_s may differ.
+STATE_KEYS = (("tube", None), ("feed", None), ("grains", "diameter_m"), ("grains", "density_kg_m3"),
+              ("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "gas_dt_s"),
+              ("numerics", "seed"))
+_STATE_ARRAYS = ("gas_force", "scalars", "phi", "u", "case_json")
+
+
+def _state_file(text: str) -> Path:
+    """The file of ``initial.state``: the path as given, else relative to ``cases/slug``."""
+    from eulag.config import CASES_DIR
+
+    p = Path(text)
+    if p.is_file():
+        return p
+    if not p.is_absolute() and (CASES_DIR / "slug" / p).is_file():
+        return CASES_DIR / "slug" / p
+    raise ValueError(f"initial.state = {text!r}: no such file; allowed: a state written by "
+                     f"eulag.slug.save_state or a run's .checkpoint (a path, or a file in cases/slug)")
+
+
+def read_state(text: str, case: dict) -> tuple[dict, float]:
+    """(arrays, time [s]) of the state ``initial.state = text`` for the resolved ``case``;
+    ValueError (one line) when it cannot continue as this case."""
+    path = _state_file(text)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            st = {k: z[k] for k in z.files if k.startswith(("g_", "d_")) or k in _STATE_ARRAYS}
+    except Exception as exc:  # noqa: BLE001 - unreadable for whatever reason
+        raise ValueError(f"initial.state = {text!r}: cannot be read ({' '.join(str(exc).split())})") from None
+    if "case_json" not in st or "scalars" not in st:
+        raise ValueError(f"initial.state = {text!r}: not a slug state (no case or scalars stored)")
+    other = json.loads(str(st["case_json"]))
+    for sec, key in STATE_KEYS:
+        a = other.get(sec, {}) if key is None else other.get(sec, {}).get(key)
+        b = case[sec] if key is None else case[sec][key]
+        if a != b:
+            raise ValueError(f"initial.state = {text!r}: written with {sec}{'.' + key if key else ''} = {a!r}, "
+                             f"this case has {b!r}; allowed: a state of a case with the same tube, feed, grain size "
+                             f"and density, gas grid, gas step and seed")
+    t0 = json.loads(str(st["scalars"]))["gas_step"] * case["numerics"]["gas_dt_s"]
+    if case["numerics"]["end_time_s"] <= t0 + case["numerics"]["output_interval_s"]:
+        raise ValueError(f"numerics.end_time_s = {case['numerics']['end_time_s']}: the state of initial.state "
+                         f"= {text!r} is at t = {t0:.6g} s; allowed > {t0 + case['numerics']['output_interval_s']:.6g}")
+    return st, t0
+
+
+def state_time(case: dict) -> float:
+    """The time [s] at which a case starts: 0, or the time of its ``initial.state``."""
+    text = case.get("initial", {}).get("state", "")
+    if not text:
+        return 0.0
+    with np.load(_state_file(text), allow_pickle=False) as z:
+        return json.loads(str(z["scalars"]))["gas_step"] * validate_slug_case(case)["numerics"]["gas_dt_s"]
+
+
+def save_state(checkpoint, out) -> Path:
+    """Write the state of a run's checkpoint without its records to ``out`` (.npz, a fraction
+    of the checkpoint's size): the start of continued runs (``initial.state``)."""
+    with np.load(Path(checkpoint), allow_pickle=False) as z:
+        st = {k: z[k] for k in z.files if k.startswith(("g_", "d_")) or k in _STATE_ARRAYS}
+    out = Path(out)
+    _atomic_savez(out, st)
+    return out
+
+
 def same_case(attrs: dict, case: dict) -> bool:
     """Whether a dataset's attributes ``attrs`` are those of a result of ``case`` (its resolved
     case, stored as the ``case`` attribute)."""
@@ -545,6 +645,9 @@ def run_slug(case: dict, out, resume=False, progress=True):
             sim.load({k: z[k] for k in z.files if k != "case_json"})
     elif ckpt.exists():
         ckpt.unlink()
+    if c["initial"]["state"] and not (resume and ckpt is not None and ckpt.exists()):
+        st, _ = read_state(c["initial"]["state"], c)
+        sim.start_from(st)
     t_start = time.time()
     last_report = t_start
     while sim.gas_step < sim.n_gas_total:

@@ -155,6 +155,56 @@ def test_resume_refuses_a_checkpoint_of_another_case(tmp_path, monkeypatch):
     assert runs.checkpoint_state(ckpt, runs.ModelCase("dem-darcy", "c", case))[2] is None
 
 
+def _short_fed(end):
+    """The horizontal case on a 7 cm tube (the study's quick geometry), fed from empty."""
+    case = _case("strauss_horizontal")
+    case["tube"]["length_m"] = 0.07
+    case["numerics"].update(cells_x=20, end_time_s=end, output_interval_s=0.005, checkpoint_interval_s=0.01)
+    return case
+
+
+def test_run_continued_from_a_state_equals_the_uninterrupted_run(tmp_path, monkeypatch):
+    """initial.state: a run continued from the saved state of another at t = 0.01 s, with the same
+    parameters, repeats the uninterrupted run's records after 0.01 s bit for bit (a state is a
+    checkpoint without its records); with another friction it runs from the same grains; a state
+    of a different tube or an end time before the state's stops with one line."""
+    full = slug.run_slug(_short_fed(0.02), tmp_path / "full.nc", progress=False)
+    real = slug._atomic_savez
+
+    def killed_after_first_checkpoint(path, state):
+        real(path, state)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(slug, "_atomic_savez", killed_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        slug.run_slug(_short_fed(0.02), tmp_path / "first.nc", progress=False)
+    monkeypatch.setattr(slug, "_atomic_savez", real)
+    state = slug.save_state(tmp_path / "first.nc.checkpoint", tmp_path / "state.npz")
+    assert state.stat().st_size < (tmp_path / "first.nc.checkpoint").stat().st_size
+    cont = _short_fed(0.02)
+    cont["initial"] = {"state": str(state)}
+    assert slug.state_time(cont) == pytest.approx(0.01)
+    ds = slug.run_slug(cont, tmp_path / "cont.nc", progress=False)
+    later = full.sel(time=slice(0.0101, None))
+    assert ds.sizes["time"] == later.sizes["time"] == 2
+    for name in ("porosity", "pressure_drop", "grain_velocity", "grains_in_tube"):
+        assert np.array_equal(later[name].values, ds[name].values, equal_nan=True), name
+    other = _short_fed(0.02)
+    other["initial"] = {"state": str(state)}
+    other["grains"]["friction"] = 0.2
+    assert slug.run_slug(other, None, progress=False).sizes["time"] == 2
+    bad = _short_fed(0.02)
+    bad["initial"] = {"state": str(state)}
+    bad["tube"]["length_m"] = 0.08
+    with pytest.raises(ValueError, match=r"^initial.state = .*written with tube = ") as err:
+        slug.validate_slug_case(bad)
+    assert "\n" not in str(err.value)
+    early = _short_fed(0.01)
+    early["initial"] = {"state": str(state)}
+    with pytest.raises(ValueError, match=r"^numerics.end_time_s = 0.01: the state .* allowed > "):
+        slug.validate_slug_case(early)
+
+
 def test_coupled_loop_one_and_two_threads_bit_identical(tmp_path):
     """The prange kernels (numerics.parallel = true) on 1 and 2 threads and the serial kernels
     give the same dataset bit for bit."""

@@ -173,6 +173,7 @@ def test_quick_runs_end_to_end_and_report_reuses_the_records(tmp_path, capsys):
     (["--velocities", "fast"], "--velocities fast"),
     (["--window", "0"], "--window 0"),
     (["--quick", "--parcels", "100"], "unrecognized arguments"),
+    (["--from-state", "no_such_state.npz"], "--from-state no_such_state.npz: initial.state = 'no_such_state.npz': no such file"),
 ])
 def test_bad_option_exits_2_with_one_line(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -180,3 +181,36 @@ def test_bad_option_exits_2_with_one_line(argv, message, capsys, tmp_path, monke
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("eulag: error:") and message in err[0]
     assert not any(tmp_path.rglob("*.nc"))
+
+
+def test_from_state_continues_the_horizontal_runs_at_the_default_feed(tmp_path, monkeypatch):
+    """--from-state: the state of the horizontal case (here after 0.005 s) starts only the
+    horizontal runs at the default feed, each ending the window after the state's time, with its
+    statistics over the window's second half; a state of another tube stops with one line."""
+    case = slug.validate_slug_case({"model": "dem-darcy", "numerics": {
+        "end_time_s": 0.01, "output_interval_s": 0.005, "checkpoint_interval_s": 0.005}})
+    real = slug._atomic_savez
+
+    def killed_after_first_checkpoint(path, state):
+        real(path, state)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(slug, "_atomic_savez", killed_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        slug.run_slug(case, tmp_path / "fill.nc", progress=False)
+    monkeypatch.setattr(slug, "_atomic_savez", real)
+    state = slug.save_state(tmp_path / "fill.nc.checkpoint", tmp_path / "state.npz")
+    plan = strauss.study_cases(False, from_state=state)
+    assert plan and all(i["orientation"] == "horizontal" and i["feed"] == 2.49 for g, i, c in plan.values())
+    for name, (g, i, c) in plan.items():
+        assert "__from-0.005__t-3.0" in name and c.data["numerics"]["end_time_s"] == pytest.approx(3.005)
+        assert strauss.window_of(c.data)[0] == pytest.approx(1.505)
+    assert {i["eta_cP"] for g, i, c in plan.values()} == set(strauss.VISCOSITIES_CP)
+    other = slug.validate_slug_case({"model": "dem-darcy", "tube": {"length_m": 0.07}, "numerics": {
+        "cells_x": 20, "end_time_s": 0.01, "output_interval_s": 0.005, "checkpoint_interval_s": 0.005}})
+    monkeypatch.setattr(slug, "_atomic_savez", killed_after_first_checkpoint)
+    with pytest.raises(KeyboardInterrupt):
+        slug.run_slug(other, tmp_path / "short.nc", progress=False)
+    monkeypatch.setattr(slug, "_atomic_savez", real)
+    monkeypatch.chdir(tmp_path)
+    assert study("--from-state", "short.nc.checkpoint", "-o", "out") == 2

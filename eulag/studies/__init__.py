@@ -10,6 +10,7 @@
                                           [--only MODELS] [--rates LIST]
     eulag study strauss                   [--quick] [-o DIR] [--resume] [--report] [--quiet] [--long]
                                           [--only GROUPS] [--feeds LIST] [--velocities LIST] [--window S]
+                                          [--from-state PATH]
 
 Each study runs its cases through :func:`eulag.runs.execute` (one dataset ``<run>.nc`` per
 case in the output folder, default ``results/<study>/``), then writes a generated table
@@ -141,7 +142,12 @@ def add_arguments(parser) -> None:
     p.add_argument("--velocities", metavar="LIST",
                    help="superficial gas velocities [m/s] of the characteristic curves (default 0.2,...,5)")
     p.add_argument("--window", type=float, metavar="S",
-                   help="simulated time of every run but the long one [s] (default: the case files' 4 s)")
+                   help="simulated time of every run but the long one [s] (default: the case files' 4 s; "
+                        "with --from-state: after the state's time, default 3 s)")
+    p.add_argument("--from-state", metavar="PATH",
+                   help="start the horizontal runs at the default feed from this filled-tube state "
+                        "(eulag.slug.save_state of a run's checkpoint) instead of an empty tube; the other "
+                        "runs are left out")
     p.set_defaults(func=_entry(study_strauss))
 
 

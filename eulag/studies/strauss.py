@@ -101,6 +101,9 @@ DEFAULT_VS, DEFAULT_FEED, DEFAULT_ETA_CP, DEFAULT_MU = 1.0, 2.49, 0.0673, 0.5
 PAPER_LENGTH, MIDDLE = 0.525, (0.15, 0.40)
 #: t_from = min(end/2, FILL_TIME_S)
 FILL_TIME_S = 6.0
+#: simulated time of a run continued from a filled-tube state (--from-state); its statistics
+#: are taken over the second half
+FROM_STATE_WINDOW_S = 3.0
 
 # the regime rule (module docstring)
 DENSE_SHARE_MIN = 0.5
@@ -194,9 +197,10 @@ def _load(name: str):
         raise _BadInput(str(exc)) from None
 
 
-def _variant(base, *, vs, feed, eta_cp, mu, end, quick):
+def _variant(base, *, vs, feed, eta_cp, mu, end, quick, state=None):
     """The run of ``base`` (a ModelCase) at v_s [m/s], feed [kg/h], η [cP], μ, end time [s]
-    (None: the case's); returns (name, ModelCase)."""
+    (None: the case's); ``state`` (path, time [s]): continued from that state, ``end`` after
+    its time; returns (name, ModelCase)."""
     from eulag.runs import ModelCase
     from eulag.slug import validate_slug_case
 
@@ -213,6 +217,10 @@ def _variant(base, *, vs, feed, eta_cp, mu, end, quick):
         for sec, kv in QUICK_CHANGES.items():
             data.setdefault(sec, {}).update(kv)
         name += "__quick"
+    elif state is not None:
+        data.setdefault("initial", {})["state"] = str(state[0])
+        data["numerics"]["end_time_s"] = float(state[1] + end)
+        name += f"__from-{_tag(state[1])}__t-{_tag(end)}"
     elif end is not None and not math.isclose(end, data["numerics"]["end_time_s"]):
         data["numerics"]["end_time_s"] = float(end)
         name += f"__t-{_tag(end)}"
@@ -224,20 +232,39 @@ def _variant(base, *, vs, feed, eta_cp, mu, end, quick):
     return name, ModelCase(base.model, name, data, base.source)
 
 
-def study_cases(quick: bool = False, groups=None, feeds=None, velocities=None, window=None, long=False):
+def study_cases(quick: bool = False, groups=None, feeds=None, velocities=None, window=None, long=False,
+                from_state=None):
     """The study's runs: a dict name -> (groups, info, ModelCase); ``groups`` the groups the run
     belongs to (a run shared by several, e.g. the default run, appears once); info: orientation,
     vs, feed, eta_cP, mu, end_s.  ``groups`` None: all but ``long`` (``long=True`` adds it);
     ``feeds`` / ``velocities``: the characteristic curves' (None: the plan's); ``window``: end
-    time of every run but the long one (None: the case's)."""
+    time of every run but the long one (None: the case's).  ``from_state`` (a state file of the
+    horizontal case at the default feed): only the horizontal runs at that feed, each continued
+    from it for ``window`` seconds (None: 3 s) with its own v_s, η and μ."""
     groups = [g for g in GROUPS if g != "long"] if groups is None else list(groups)
     if long and "long" not in groups:
         groups.append("long")
     horiz, vert = _load("strauss_horizontal"), _load("strauss_vertical")
     out: dict = {}
+    state = None
+    if from_state is not None:
+        from eulag.slug import read_state, validate_slug_case
+
+        if quick:
+            raise _BadInput("--from-state: not with --quick (quick runs use a 7 cm tube)")
+        probe = copy.deepcopy(horiz.data)
+        probe.setdefault("initial", {})["state"] = str(from_state)
+        probe.setdefault("numerics", {})["end_time_s"] = 1e9
+        try:
+            state = (Path(from_state).resolve(), read_state(str(from_state), validate_slug_case(probe))[1])
+        except ValueError as exc:
+            raise _BadInput(f"--from-state {from_state}: {' '.join(str(exc).split())}") from None
+        window = FROM_STATE_WINDOW_S if window is None else window
 
     def add(group, base, vs=DEFAULT_VS, feed=DEFAULT_FEED, eta=DEFAULT_ETA_CP, mu=DEFAULT_MU, end=window):
-        name, case = _variant(base, vs=vs, feed=feed, eta_cp=eta, mu=mu, end=end, quick=quick)
+        if state is not None and (base is not horiz or not math.isclose(feed, DEFAULT_FEED) or group == "long"):
+            return  # a state of the horizontal tube at the default feed continues only such runs
+        name, case = _variant(base, vs=vs, feed=feed, eta_cp=eta, mu=mu, end=end, quick=quick, state=state)
         info = {"orientation": case.data["tube"]["orientation"], "vs": vs, "feed": feed, "eta_cP": eta, "mu": mu,
                 "end_s": case.data["numerics"]["end_time_s"]}
         if name in out:
@@ -270,11 +297,18 @@ def study_cases(quick: bool = False, groups=None, feeds=None, velocities=None, w
 
 # ---------------------------------------------------------------------------- one run
 def window_of(case_data: dict) -> tuple[float, tuple[float, float]]:
-    """(t_from [s], (x0, x1) [m]) of a run's statistics: t ≥ min(end/2, FILL_TIME_S); slugs centred
-    in the middle of the tube (15–40 cm of the paper's 52.5 cm, scaled with the length)."""
+    """(t_from [s], (x0, x1) [m]) of a run's statistics: t ≥ min(end/2, FILL_TIME_S) from an
+    empty tube, the second half of a run continued from a state (t ≥ t0 + (end − t0)/2); slugs
+    centred in the middle of the tube (15–40 cm of the paper's 52.5 cm, scaled with the length)."""
+    from eulag.slug import state_time
+
     end = float(case_data["numerics"]["end_time_s"])
     L = float(case_data["tube"]["length_m"])
-    return min(0.5 * end, FILL_TIME_S), (MIDDLE[0] * L / PAPER_LENGTH, MIDDLE[1] * L / PAPER_LENGTH)
+    xw = (MIDDLE[0] * L / PAPER_LENGTH, MIDDLE[1] * L / PAPER_LENGTH)
+    if case_data.get("initial", {}).get("state"):
+        t0 = state_time(case_data)
+        return t0 + 0.5 * (end - t0), xw
+    return min(0.5 * end, FILL_TIME_S), xw
 
 
 def extract_metrics(ds, case, outdir: Path | None = None, name: str = "", spacetime: bool = False) -> dict:
@@ -368,7 +402,8 @@ def study_strauss(args, outdir: Path, t_start: float) -> int:
         raise _BadInput("--window: not with --quick (quick runs are 0.02 s)")
     groups = _groups(getattr(args, "only", None), long)
     plan = study_cases(quick, groups, _float_list(getattr(args, "feeds", None), "--feeds"),
-                       _float_list(getattr(args, "velocities", None), "--velocities"), window, long)
+                       _float_list(getattr(args, "velocities", None), "--velocities"), window, long,
+                       getattr(args, "from_state", None))
     records = {}
     for i, (name, (grp, info, case)) in enumerate(plan.items(), 1):
         label = f"[{STUDY} {i}/{len(plan)}] {name}"
