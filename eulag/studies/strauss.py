@@ -256,7 +256,7 @@ def study_cases(quick: bool = False, groups=None, feeds=None, velocities=None, w
         probe.setdefault("initial", {})["state"] = str(from_state)
         probe.setdefault("numerics", {})["end_time_s"] = 1e9
         try:
-            state = (Path(from_state).resolve(), read_state(str(from_state), validate_slug_case(probe))[1])
+            state = (str(from_state), read_state(str(from_state), validate_slug_case(probe))[1])
         except ValueError as exc:
             raise _BadInput(f"--from-state {from_state}: {' '.join(str(exc).split())}") from None
         window = FROM_STATE_WINDOW_S if window is None else window
