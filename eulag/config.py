@@ -681,6 +681,9 @@ DEVIATIONS: dict[str, tuple[Any, Any, str]] = {
                             "shadow effect: the sin(alpha + gamma)-weighted pdf, or rejection of "
                             "alpha + gamma <= 0 (Sommerfeld & Huber 1999)"),
     "physics.k_source_scaling": ("seen-energy", "none", "S_k rescaled by k/k_seen per cell, or as sampled"),
+    "physics.langevin_drift_correction": (True, False,
+                                          "the drift correction of the Langevin model for inhomogeneous "
+                                          "turbulence (MacInnes & Bracco 1992), or none (the paper's eq. 12)"),
     "physics.partner_momentum": ("returned", "discarded",
                                  "the fictitious partners' impulse: discarded (Sommerfeld 2001), or "
                                  "returned to the cell's particles"),

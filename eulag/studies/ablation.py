@@ -40,12 +40,10 @@ PROXY_NUMERICS = {"axial_cells": 40, "radial_cells": 10, "azimuthal_cells": 20, 
 
 
 #: Model ingredients that are not departures from the paper, switched off on request
-#: (``--variants``) to find which one decides a pattern: the lift forces and the drift correction
-#: of the Langevin model.  Not in the default set.
+#: (``--variants``) to find which one decides a pattern: the lift forces.  Not in the default set.
 INGREDIENT_VARIANTS: tuple[tuple[str, dict], ...] = (
     ("saffman_mei_lift=false", {"physics": {"saffman_mei_lift": False}}),
     ("magnus_lift=false", {"physics": {"magnus_lift": False}}),
-    ("langevin_drift_correction=false", {"physics": {"langevin_drift_correction": False}}),
 )
 #: Departures that only act through the inter-particle collisions (skipped for two-way scenes,
 #: where they would repeat the ``eulag`` row).
