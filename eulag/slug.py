@@ -36,10 +36,11 @@ to ``<out>.checkpoint`` (written to a temporary file, then renamed); ``resume=Tr
 from it and gives the same result, bit for bit, as an uninterrupted run.
 
 Continued runs: ``initial.state`` names a state (:func:`save_state` of a checkpoint, or the
-checkpoint itself) of a case with the same tube, feed, grains' size and density, gas grid and
-step (:data:`STATE_KEYS`); the run starts from its grains, gas and time with its own friction,
-restitution, stiffness, gas viscosity and superficial velocity — a filled tube for parameter
-studies instead of the ≈ 6 s of filling from an empty one.  ``numerics.end_time_s`` stays
+checkpoint itself) of a case with the same tube, feed packing, grains' size and density, gas
+grid and step (:data:`STATE_KEYS`); the run starts from its grains, gas and time with its own
+friction, restitution, stiffness, gas viscosity, superficial velocity and feed rate (the feed
+goes on from where it stood) — a filled tube for parameter studies instead of the ≈ 6 s of
+filling from an empty one.  ``numerics.end_time_s`` stays
 absolute.
 """
 
@@ -222,6 +223,9 @@ class _Simulation:
         mdot = fd["mass_flow_kg_h"] / 3600.0
         self.v_feed = 0.0 if self.periodic else feed_speed(mdot, gr["density_kg_m3"], fd["porosity"], self.Dt)
         self.feed = Feed(self.template, lb, self.v_feed)
+        # the feed's advance s = s0 + v_feed (t − t0) [m]; (s0, gas step of t0) = (0, 0) but in a
+        # run continued from a state written at another feed rate (start_from)
+        self.feed_origin = (0.0, 0)
         if self.periodic:
             self.cells = CellGrid(0.0, self.L, self.Rt, self.d, periodic=True)
         else:
@@ -269,7 +273,8 @@ class _Simulation:
             self.gas_force = gf
 
     def _feed_blocks(self):
-        s = self.v_feed * (self.gas_step * self.n_sub) * self.dt
+        s0, step0 = self.feed_origin
+        s = s0 + self.v_feed * ((self.gas_step - step0) * self.n_sub) * self.dt
         for p in self.feed.blocks_due(s):
             self._add(p, self.FEED)
 
@@ -405,6 +410,7 @@ class _Simulation:
         st["gas_force"] = self.gas_force[:n].copy()
         scal = dict(gas_step=self.gas_step, next_gid=self.next_gid, outflow=self.outflow, lost=self.lost,
                     max_overlap=self.max_overlap, phi_clipped=self.phi_clipped, next_block=self.feed.next_block,
+                    feed_origin=list(self.feed_origin), feed_speed=self.v_feed,
                     lost_reasons=self.lost_reasons)
         st["scalars"] = np.array(json.dumps(scal))
         for k, v in self.rec.items():
@@ -424,6 +430,7 @@ class _Simulation:
         self.gas_step, self.next_gid, self.outflow = scal["gas_step"], scal["next_gid"], scal["outflow"]
         self.lost, self.max_overlap, self.phi_clipped = scal["lost"], scal["max_overlap"], scal["phi_clipped"]
         self.feed.next_block = scal["next_block"]
+        self.feed_origin = tuple(scal.get("feed_origin", (0.0, 0)))
         self.lost_reasons = scal["lost_reasons"]
         n_rec = len(st["rec_time"])
         for k in self.rec:
@@ -449,6 +456,12 @@ class _Simulation:
         scal = json.loads(str(st["scalars"]))
         self.gas_step, self.next_gid = scal["gas_step"], scal["next_gid"]
         self.feed.next_block = scal["next_block"]
+        s0, step0 = scal.get("feed_origin", (0.0, 0))
+        v_old = scal.get("feed_speed", _state_feed_speed(st))
+        if v_old != self.v_feed:  # the feed continues from where it stood, at this case's speed
+            self.feed_origin = (s0 + v_old * (self.gas_step - step0) * self.gas_dt, self.gas_step)
+        else:
+            self.feed_origin = (s0, step0)
         self.phi, self.u = st["phi"], st["u"]
         self.work = {}
 
@@ -547,12 +560,26 @@ def checkpoint_problem(ckpt, case: dict):
 
 
 #: Keys a continued run (``initial.state``) must share with the case that wrote the state: the
-#: geometry, the grains' size and density, the feed (its schedule continues) and the gas grid
-#: and step.  Friction, restitution, stiffness, gas viscosity, pressure and v_s may differ.
-STATE_KEYS = (("tube", None), ("feed", None), ("grains", "diameter_m"), ("grains", "density_kg_m3"),
+#: geometry, the grains' size and density, the feed's packing (porosity, block) and the gas grid
+#: and step.  Friction, restitution, stiffness, gas viscosity, pressure, v_s and the feed rate
+#: may differ (a new feed rate continues the feed from where it stood).
+STATE_KEYS = (("tube", None), ("feed", "porosity"), ("feed", "block_length_m"), ("grains", "diameter_m"),
+              ("grains", "density_kg_m3"),
               ("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "gas_dt_s"),
               ("numerics", "seed"))
 _STATE_ARRAYS = ("gas_force", "scalars", "phi", "u", "case_json")
+
+
+def _state_feed_speed(st) -> float:
+    """The feed speed [m/s] of the case that wrote the state ``st`` (states written before the
+    checkpoints stored it)."""
+    from dem.feed import feed_speed
+
+    c = json.loads(str(st["case_json"]))
+    if c["tube"]["periodic"]:
+        return 0.0
+    return feed_speed(c["feed"]["mass_flow_kg_h"] / 3600.0, c["grains"]["density_kg_m3"], c["feed"]["porosity"],
+                      c["tube"]["diameter_m"])
 
 
 def _state_file(text: str) -> Path:
@@ -585,8 +612,8 @@ def read_state(text: str, case: dict) -> tuple[dict, float]:
         b = case[sec] if key is None else case[sec][key]
         if a != b:
             raise ValueError(f"initial.state = {text!r}: written with {sec}{'.' + key if key else ''} = {a!r}, "
-                             f"this case has {b!r}; allowed: a state of a case with the same tube, feed, grain size "
-                             f"and density, gas grid, gas step and seed")
+                             f"this case has {b!r}; allowed: a state of a case with the same tube, feed packing, grain "
+                             f"size and density, gas grid, gas step and seed")
     t0 = json.loads(str(st["scalars"]))["gas_step"] * case["numerics"]["gas_dt_s"]
     if case["numerics"]["end_time_s"] <= t0 + case["numerics"]["output_interval_s"]:
         raise ValueError(f"numerics.end_time_s = {case['numerics']['end_time_s']}: the state of initial.state "

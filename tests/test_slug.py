@@ -193,6 +193,17 @@ def test_run_continued_from_a_state_equals_the_uninterrupted_run(tmp_path, monke
     other["initial"] = {"state": str(state)}
     other["grains"]["friction"] = 0.2
     assert slug.run_slug(other, None, progress=False).sizes["time"] == 2
+    # another feed rate: the feed goes on from where it stood, at the new speed
+    faster = _short_fed(0.02)
+    faster["initial"] = {"state": str(state)}
+    faster["feed"]["mass_flow_kg_h"] = 4 * 2.49
+    c_old, c_new = slug.validate_slug_case(_short_fed(0.02)), slug.validate_slug_case(faster)
+    sim = slug._Simulation(c_new)
+    sim.start_from(slug.read_state(str(state), c_new)[0])
+    v_old = slug._Simulation(c_old).v_feed
+    assert sim.v_feed == pytest.approx(4 * v_old)
+    assert sim.feed_origin == (pytest.approx(v_old * 0.01), 100)
+    assert slug.run_slug(faster, None, progress=False).sizes["time"] == 2
     bad = _short_fed(0.02)
     bad["initial"] = {"state": str(state)}
     bad["tube"]["length_m"] = 0.08

@@ -183,9 +183,9 @@ def test_bad_option_exits_2_with_one_line(argv, message, capsys, tmp_path, monke
     assert not any(tmp_path.rglob("*.nc"))
 
 
-def test_from_state_continues_the_horizontal_runs_at_the_default_feed(tmp_path, monkeypatch):
+def test_from_state_continues_the_horizontal_runs(tmp_path, monkeypatch):
     """--from-state: the state of the horizontal case (here after 0.005 s) starts only the
-    horizontal runs at the default feed, each ending the window after the state's time, with its
+    horizontal runs (every feed rate), each ending the window after the state's time, with its
     statistics over the window's second half; a state of another tube stops with one line."""
     case = slug.validate_slug_case({"model": "dem-darcy", "numerics": {
         "end_time_s": 0.01, "output_interval_s": 0.005, "checkpoint_interval_s": 0.005}})
@@ -201,7 +201,8 @@ def test_from_state_continues_the_horizontal_runs_at_the_default_feed(tmp_path, 
     monkeypatch.setattr(slug, "_atomic_savez", real)
     state = slug.save_state(tmp_path / "fill.nc.checkpoint", tmp_path / "state.npz")
     plan = strauss.study_cases(False, from_state=state)
-    assert plan and all(i["orientation"] == "horizontal" and i["feed"] == 2.49 for g, i, c in plan.values())
+    assert plan and all(i["orientation"] == "horizontal" for g, i, c in plan.values())
+    assert {i["feed"] for g, i, c in plan.values()} == set(strauss.FEEDS) | set(strauss.MASS_FLUX_FEEDS)
     for name, (g, i, c) in plan.items():
         assert "__from-0.005__t-3.0" in name and c.data["numerics"]["end_time_s"] == pytest.approx(3.005)
         assert strauss.window_of(c.data)[0] == pytest.approx(1.505)

@@ -145,9 +145,8 @@ def add_arguments(parser) -> None:
                    help="simulated time of every run but the long one [s] (default: the case files' 4 s; "
                         "with --from-state: after the state's time, default 3 s)")
     p.add_argument("--from-state", metavar="PATH",
-                   help="start the horizontal runs at the default feed from this filled-tube state "
-                        "(eulag.slug.save_state of a run's checkpoint) instead of an empty tube; the other "
-                        "runs are left out")
+                   help="start the horizontal runs from this filled-tube state (eulag.slug.save_state of a "
+                        "run's checkpoint) instead of an empty tube; the vertical and long runs are left out")
     p.set_defaults(func=_entry(study_strauss))
 
 

@@ -239,8 +239,8 @@ def study_cases(quick: bool = False, groups=None, feeds=None, velocities=None, w
     vs, feed, eta_cP, mu, end_s.  ``groups`` None: all but ``long`` (``long=True`` adds it);
     ``feeds`` / ``velocities``: the characteristic curves' (None: the plan's); ``window``: end
     time of every run but the long one (None: the case's).  ``from_state`` (a state file of the
-    horizontal case at the default feed): only the horizontal runs at that feed, each continued
-    from it for ``window`` seconds (None: 3 s) with its own v_s, η and μ."""
+    horizontal case): only the horizontal runs, each continued from it for ``window`` seconds
+    (None: 3 s) with its own v_s, feed, η and μ."""
     groups = [g for g in GROUPS if g != "long"] if groups is None else list(groups)
     if long and "long" not in groups:
         groups.append("long")
@@ -262,8 +262,8 @@ def study_cases(quick: bool = False, groups=None, feeds=None, velocities=None, w
         window = FROM_STATE_WINDOW_S if window is None else window
 
     def add(group, base, vs=DEFAULT_VS, feed=DEFAULT_FEED, eta=DEFAULT_ETA_CP, mu=DEFAULT_MU, end=window):
-        if state is not None and (base is not horiz or not math.isclose(feed, DEFAULT_FEED) or group == "long"):
-            return  # a state of the horizontal tube at the default feed continues only such runs
+        if state is not None and (base is not horiz or group == "long"):
+            return  # a state of the horizontal tube continues only horizontal runs
         name, case = _variant(base, vs=vs, feed=feed, eta_cp=eta, mu=mu, end=end, quick=quick, state=state)
         info = {"orientation": case.data["tube"]["orientation"], "vs": vs, "feed": feed, "eta_cP": eta, "mu": mu,
                 "end_s": case.data["numerics"]["end_time_s"]}
