@@ -486,6 +486,13 @@ class PhysicsConfig(_Section):
         consistent with the gas k; where particles carry their fluid-velocity memory into a
         pocket the sink has already drained, it stops the sink from feeding on energy the gas
         no longer has); ``"none"``: the seed's estimator as sampled.
+    langevin_drift_form : str
+        Time factor of the drift correction (1 - R) T_L (2/3) grad k of the fluid velocity seen:
+        ``"particle"`` (default; R = R_P, the particle's correlation with the crossing-trajectory
+        part, as PHYSICS.md states the MacInnes & Bracco term) or ``"lagrangian"`` (R = R_L, the
+        fluid's Lagrangian correlation: the mean-pressure-gradient drift of the fluid seen over the
+        step, Minier & Peirano 2001). Identical for tracers; for inertial particles the particle form
+        is larger, up to T_L/dt times.
     partner_correlation : str
         Where the stochastic collision model takes the Stokes number of its partner
         correlation R(St) = exp(-0.55 St^0.4): ``"particle"`` (default; at the real particle,
@@ -521,6 +528,8 @@ class PhysicsConfig(_Section):
     rotation: bool = _param(BOOLEAN, "particle rotation", default=True)
     langevin: bool = _param(BOOLEAN, "Langevin dispersion", default=True)
     langevin_drift_correction: bool = _param(BOOLEAN, "drift correction", default=True)
+    langevin_drift_form: str = _param(STRING, "time factor of the drift correction", default="particle",
+                                      choices=("particle", "lagrangian"))
     gravity: bool = _param(BOOLEAN, "gravity", default=True)
     inter_particle_collisions: bool | None = _param(
         BOOLEAN, "inter-particle collisions, needs four-way coupling", default=None)
@@ -703,6 +712,7 @@ PROFILES = ("eulag", "paper")
 #: as one holding that value, so comparisons of stored cases drop it there
 #: (:func:`comparable_attrs`); the datasets' attributes keep every key.
 LATER_KEYS: dict[str, Any] = {"physics.partner_correlation": "particle",
+                               "physics.langevin_drift_form": "particle",
                                "physics.partner_momentum": "discarded",
                                "numerics.mirror_symmetry": "false"}
 

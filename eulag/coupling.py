@@ -420,6 +420,7 @@ def physics_options(case):
     return particles.PhysicsOptions(
         saffman_mei_lift=ph.saffman_mei_lift, magnus_lift=ph.magnus_lift, magnus_model=ph.magnus_model,
         rotation=ph.rotation, langevin=ph.langevin, drift_correction=ph.langevin_drift_correction,
+        drift_form=ph.langevin_drift_form,
         gravity=ph.gravity, inter_particle_collisions=ph.inter_particle_collisions,
         step_rule=case.numerics.step_rule, partner_correlation=ph.partner_correlation,
         partner_momentum=ph.partner_momentum,

@@ -27,7 +27,7 @@ Per particle step:
    J = m[(u^{n+1} − u^n) − g′Δt] and u′_F·J);
 6. fields at x_{n+1}; the fluid velocity seen is updated by the Langevin model of
    Sommerfeld et al. (1993) with R_P = R_L(Δt) R_E(Δr), Δr = ∫(u_F − u_p)dt over the step, plus the
-   (1 − R_P) T_L ∂⟨u′_i u′_j⟩/∂x_j drift correction;
+   (1 − R_P) T_L ∂⟨u′_i u′_j⟩/∂x_j drift correction (or (1 − R_L) T_L, ``drift_form``);
 7. wall collision (collisions.wall, which also mirrors u′_n) and the stochastic
    inter-particle collision against a fictitious partner drawn from the previous pass's
    cell statistics (collisions.interparticle);
@@ -94,6 +94,10 @@ class PhysicsOptions:
 
     saffman_mei_lift, magnus_lift, rotation, langevin, drift_correction, gravity,
     inter_particle_collisions : bool — terms of docs/physics.md–§4 (magnus needs rotation).
+    drift_form : "particle" | "lagrangian" — the drift correction's factor (1 − R_P) T_L (the
+        particle's correlation, crossing trajectories included) or (1 − R_L) T_L (the fluid's
+        Lagrangian correlation alone: the mean-pressure-gradient drift of the fluid seen acting
+        over the step, as in Minier & Peirano 2001); the two agree for tracers.
     magnus_model : "lun-liu" | "oesterle-bui-dinh".
     step_rule : "default" | "paper".
     partner_correlation : "particle" | "cell" — where the Stokes number St = τ_p/T_L of the
@@ -121,6 +125,7 @@ class PhysicsOptions:
     rotation: bool = True
     langevin: bool = True
     drift_correction: bool = True
+    drift_form: str = "particle"
     gravity: bool = True
     inter_particle_collisions: bool = True
     step_rule: str = "default"
@@ -134,6 +139,8 @@ class PhysicsOptions:
             raise ValueError("magnus_lift needs rotation")
         if self.magnus_model not in ("lun-liu", "oesterle-bui-dinh"):
             raise ValueError(f"magnus_model = {self.magnus_model!r}: allowed lun-liu, oesterle-bui-dinh")
+        if self.drift_form not in ("particle", "lagrangian"):
+            raise ValueError(f"drift_form = {self.drift_form!r}: allowed particle, lagrangian")
         if self.step_rule not in ("default", "paper"):
             raise ValueError(f"step_rule = {self.step_rule!r}: allowed default, paper")
         if self.partner_correlation not in ("particle", "cell"):
@@ -452,6 +459,7 @@ def make_tracker(options=PhysicsOptions()):
     pp_collision = make_interparticle_collision(options.interparticle)
     langevin = options.langevin
     drift = options.drift_correction
+    drift_lagrangian = options.drift_form == "lagrangian"
     pp = options.inter_particle_collisions
     paper_rule = options.step_rule == "paper"
     cell_corr = options.partner_correlation == "cell"
@@ -740,12 +748,17 @@ def make_tracker(options=PhysicsOptions()):
                         re0 = math.exp(-dt / t_ln)
                         re1 = re0
                         re2 = re0
+                    if drift and drift_lagrangian:
+                        drift_time = -math.expm1(-dt / t_ln) * t_ln  # (1 - R_L) T_L
                     for c in range(3):
                         rp = re0 if c == 0 else (re1 if c == 1 else re2)
                         zc = z0 if c == 0 else (z1 if c == 1 else z2)
                         un = rp * useen[c] + sign * math.sqrt(max(0.0, 1.0 - rp * rp)) * zc
                         if drift:
-                            un += (1.0 - rp) * t_ln * (2.0 / 3.0) * src[F_DKX + c]
+                            if drift_lagrangian:
+                                un += drift_time * (2.0 / 3.0) * src[F_DKX + c]
+                            else:
+                                un += (1.0 - rp) * t_ln * (2.0 / 3.0) * src[F_DKX + c]
                         useen[c] = un
                 fvals, dvals = dvals, fvals  # the fields at x_{n+1} become those of the next step
                 ci = ni
