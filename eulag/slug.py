@@ -151,6 +151,16 @@ def validate_slug_case(case: dict) -> dict:
         raise _bad("numerics", "gas_dt_s", n["gas_dt_s"], f"<= numerics.output_interval_s ({n['output_interval_s']})")
     if n["output_interval_s"] > n["end_time_s"]:
         raise _bad("numerics", "output_interval_s", n["output_interval_s"], "<= numerics.end_time_s")
+    from dem.engine import SKIN
+
+    shortest = 3 * (1 + SKIN) * gr["diameter_m"]  # three cells of the neighbour search
+    if out["feed"]["block_length_m"] < shortest:
+        raise _bad("feed", "block_length_m", out["feed"]["block_length_m"],
+                   f">= {shortest:.4g} m (3 (1 + {SKIN}) grain diameters: the feed packing is relaxed in a periodic "
+                   f"block of this length)")
+    if t["periodic"] and t["length_m"] < shortest:
+        raise _bad("tube", "length_m", t["length_m"], f">= {shortest:.4g} m for a periodic tube (3 (1 + {SKIN}) "
+                   f"grain diameters)")
     if out["initial"]["state"] and t["periodic"]:
         raise _bad("initial", "state", out["initial"]["state"], "\"\" for a periodic tube (its initial plug is "
                    "initial.plug_length_m)")
@@ -237,6 +247,7 @@ class _Simulation:
         self.FEED, self.FREE = FEED, FREE
         # counters
         self.gas_step = 0
+        self.t_start = 0.0  # the time the run started from (a state's time for a continued run)
         self.next_gid = 0
         self.outflow = 0
         self.lost = 0
@@ -410,7 +421,7 @@ class _Simulation:
         st["gas_force"] = self.gas_force[:n].copy()
         scal = dict(gas_step=self.gas_step, next_gid=self.next_gid, outflow=self.outflow, lost=self.lost,
                     max_overlap=self.max_overlap, phi_clipped=self.phi_clipped, next_block=self.feed.next_block,
-                    feed_origin=list(self.feed_origin), feed_speed=self.v_feed,
+                    feed_origin=list(self.feed_origin), feed_speed=self.v_feed, t_start=self.t_start,
                     lost_reasons=self.lost_reasons)
         st["scalars"] = np.array(json.dumps(scal))
         for k, v in self.rec.items():
@@ -431,6 +442,7 @@ class _Simulation:
         self.lost, self.max_overlap, self.phi_clipped = scal["lost"], scal["max_overlap"], scal["phi_clipped"]
         self.feed.next_block = scal["next_block"]
         self.feed_origin = tuple(scal.get("feed_origin", (0.0, 0)))
+        self.t_start = scal.get("t_start", 0.0)
         self.lost_reasons = scal["lost_reasons"]
         n_rec = len(st["rec_time"])
         for k in self.rec:
@@ -462,6 +474,7 @@ class _Simulation:
             self.feed_origin = (s0 + v_old * (self.gas_step - step0) * self.gas_dt, self.gas_step)
         else:
             self.feed_origin = (s0, step0)
+        self.t_start = self.gas_step * self.gas_dt
         self.phi, self.u = st["phi"], st["u"]
         self.work = {}
 
@@ -471,7 +484,7 @@ class _Simulation:
         r, grid = self.rec, self.grid
         time_ = np.array(r["time"])
         sl = np.array(self.slugs, dtype=float).reshape(-1, 6)
-        mdot = self.model.mass * np.diff(np.concatenate([[0], r["outflow"]])) / np.diff(np.concatenate([[0.0], time_]))
+        mdot = self.model.mass * np.diff(np.concatenate([[0], r["outflow"]])) / np.diff(np.concatenate([[self.t_start], time_]))
 
         def var(dims, data, units, long_name, **kw):
             return (dims, np.asarray(data), dict(units=units, long_name=long_name, **kw))
@@ -490,7 +503,7 @@ class _Simulation:
                                      "mean magnitude of the contact force (grains and wall) per grain of a slice (0 without grains)"),
                 "pressure_drop": var(("time",), r["dp"], "Pa", "gas pressure at the inlet minus outlet"),
                 "grains_in_tube": var(("time",), r["n_tube"], "1", "free grains with 0 <= x < L"),
-                "outflow_count": var(("time",), r["outflow"], "1", "grains left through the outlet since t = 0"),
+                "outflow_count": var(("time",), r["outflow"], "1", "grains left through the outlet since the start of the run"),
                 "outflow_mass_rate": var(("time",), mdot, "kg s-1", "grain mass leaving per time over the last interval"),
                 "max_overlap_per_d": var(("time",), r["overlap"], "1",
                                          "largest grain overlap over the last interval / grain diameter"),
@@ -539,10 +552,19 @@ def checkpoint_path(out) -> Path:
     return out.with_name(out.name + ".checkpoint")
 
 
-def _checkpoint_key(c: dict) -> str:
-    """The identity a checkpoint stores: the resolved case without ``numerics.end_time_s`` (a
-    run may be continued to a later end)."""
+def _comparable(c: dict) -> dict:
+    """A resolved case in the form stored cases are compared in: ``initial.state`` dropped when
+    empty (the key came after the first stored runs, which all started from an empty tube)."""
     same = json.loads(json.dumps(c))
+    if not same.get("initial", {}).get("state", None):
+        same.get("initial", {}).pop("state", None)
+    return same
+
+
+def _checkpoint_key(c: dict) -> str:
+    """The identity a checkpoint stores: the resolved case (:func:`_comparable`) without
+    ``numerics.end_time_s`` (a run may be continued to a later end)."""
+    same = _comparable(c)
     same.get("numerics", {}).pop("end_time_s", None)
     return json.dumps(same, sort_keys=True)
 
@@ -607,11 +629,14 @@ def read_state(text: str, case: dict) -> tuple[dict, float]:
     if "case_json" not in st or "scalars" not in st:
         raise ValueError(f"initial.state = {text!r}: not a slug state (no case or scalars stored)")
     other = json.loads(str(st["case_json"]))
+    pairs = []
     for sec, key in STATE_KEYS:
-        a = other.get(sec, {}) if key is None else other.get(sec, {}).get(key)
-        b = case[sec] if key is None else case[sec][key]
+        keys = case[sec] if key is None else (key,)
+        pairs += [(sec, k) for k in keys]
+    for sec, key in pairs:
+        a, b = other.get(sec, {}).get(key), case[sec][key]
         if a != b:
-            raise ValueError(f"initial.state = {text!r}: written with {sec}{'.' + key if key else ''} = {a!r}, "
+            raise ValueError(f"initial.state = {text!r}: written with {sec}.{key} = {a!r}, "
                              f"this case has {b!r}; allowed: a state of a case with the same tube, feed packing, grain "
                              f"size and density, gas grid, gas step and seed")
     t0 = json.loads(str(st["scalars"]))["gas_step"] * case["numerics"]["gas_dt_s"]
@@ -623,11 +648,10 @@ def read_state(text: str, case: dict) -> tuple[dict, float]:
 
 def state_time(case: dict) -> float:
     """The time [s] at which a case starts: 0, or the time of its ``initial.state``."""
-    text = case.get("initial", {}).get("state", "")
-    if not text:
+    c = validate_slug_case(case)  # a state that cannot start this case stops here, in one line
+    if not c["initial"]["state"]:
         return 0.0
-    with np.load(_state_file(text), allow_pickle=False) as z:
-        return json.loads(str(z["scalars"]))["gas_step"] * validate_slug_case(case)["numerics"]["gas_dt_s"]
+    return read_state(c["initial"]["state"], c)[1]
 
 
 def save_state(checkpoint, out) -> Path:
@@ -644,7 +668,7 @@ def same_case(attrs: dict, case: dict) -> bool:
     """Whether a dataset's attributes ``attrs`` are those of a result of ``case`` (its resolved
     case, stored as the ``case`` attribute)."""
     try:
-        return json.loads(attrs.get("case", "null")) == json.loads(json.dumps(validate_slug_case(case)))
+        return _comparable(json.loads(attrs.get("case", "null"))) == _comparable(validate_slug_case(case))
     except (ValueError, KeyError, TypeError):
         return False
 

@@ -177,6 +177,47 @@ def test_verlet_list_misses_no_contact():
     assert np.abs(out[0] - out[1]).max() < 1e-10
 
 
+def test_listed_forces_equal_a_brute_force_sum_over_all_pairs():
+    """The force and torque on every grain after a step equal the sum of dem.contacts.contact over
+    all pairs and the wall, evaluated independently of any neighbour search (O(N²)), at the
+    positions and predicted velocities the step used."""
+    m = _model()
+    dt = m.t_contact / STEPS_PER_CONTACT
+    pos, _ = _random_column(250, 0.02, 11)
+    rng = np.random.default_rng(3)
+    pos = pos + rng.normal(scale=0.06 * D, size=pos.shape)  # overlaps of a few per cent of d
+    vel = rng.normal(scale=0.5, size=pos.shape)
+    g = Grains()
+    g.append(pos, vel, np.full(len(pos), FREE, dtype=np.int8), np.arange(len(pos)))
+    g.omg[: g.n] = rng.normal(scale=50.0, size=pos.shape)
+    grid = CellGrid(-0.01, 0.03, RT, D)
+    work, gas = {}, np.zeros((len(g.status), 3))
+    dem_step(g, m, grid, gas, np.zeros(3), dt, 0.0, np.nan, work, nsteps=3)
+    n, r = g.n, 0.5 * D
+    p, vp, wp = g.pos[:n], work["vp"][:n], work["wp"][:n]
+    f_ref, t_ref = np.zeros((n, 3)), np.zeros((n, 3))
+    for i in range(n):
+        for j in range(n):
+            d = p[i] - p[j]
+            dist = math.sqrt(d @ d)
+            if i == j or dist >= D:
+                continue
+            out = contact(*(d / dist), D - dist, *(vp[i] - vp[j]), *(wp[i] + wp[j]), r, m.k_n, m.gn_pp, m.gt_pp,
+                          m.mu_pp)
+            f_ref[i] += out[:3]
+            t_ref[i] += out[3:6]
+        rr = math.hypot(p[i, 1], p[i, 2])
+        if rr + r > RT:
+            out = contact(0.0, -p[i, 1] / rr, -p[i, 2] / rr, rr + r - RT, *vp[i], *wp[i], r, m.k_n, m.gn_pw, m.gt_pw,
+                          m.mu_pw)
+            f_ref[i] += out[:3]
+            t_ref[i] += out[3:6]
+    assert np.count_nonzero(np.abs(f_ref).sum(axis=1)) > 80  # a third of the grains are in contact
+    scale = np.abs(f_ref).max()
+    assert np.abs(g.force[:n] - f_ref).max() < 1e-12 * scale
+    assert np.abs(g.torque[:n] - t_ref).max() < 1e-12 * np.abs(t_ref).max()
+
+
 @pytest.mark.slow
 def test_janssen_wall_stress_saturates_in_vertical_column():
     """A random column (porosity 0.57 relaxed packing, 8.6 cm) settled on a plate in a vertical

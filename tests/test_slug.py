@@ -203,17 +203,46 @@ def test_run_continued_from_a_state_equals_the_uninterrupted_run(tmp_path, monke
     v_old = slug._Simulation(c_old).v_feed
     assert sim.v_feed == pytest.approx(4 * v_old)
     assert sim.feed_origin == (pytest.approx(v_old * 0.01), 100)
-    assert slug.run_slug(faster, None, progress=False).sizes["time"] == 2
+    fast = slug.run_slug(faster, None, progress=False)
+    assert fast.sizes["time"] == 2
+    assert np.isfinite(fast["outflow_mass_rate"].values).all()  # the rate counts from the state's time
     bad = _short_fed(0.02)
     bad["initial"] = {"state": str(state)}
     bad["tube"]["length_m"] = 0.08
-    with pytest.raises(ValueError, match=r"^initial.state = .*written with tube = ") as err:
+    with pytest.raises(ValueError, match=r"^initial.state = .*written with tube.length_m = 0.07, this case has 0.08; allowed") as err:
         slug.validate_slug_case(bad)
     assert "\n" not in str(err.value)
     early = _short_fed(0.01)
     early["initial"] = {"state": str(state)}
     with pytest.raises(ValueError, match=r"^numerics.end_time_s = 0.01: the state .* allowed > "):
         slug.validate_slug_case(early)
+
+
+def test_cases_stored_before_initial_state_existed_are_the_same_case(tmp_path):
+    """A dataset or checkpoint of a run made before the key initial.state existed (its stored case
+    has no such key) is the same case as today's with initial.state = "" (so --resume keeps it)."""
+    import json
+
+    case = _short_periodic()
+    old = slug.validate_slug_case(case)
+    del old["initial"]["state"]
+    assert slug.same_case({"case": json.dumps(old)}, case)
+    ckpt = tmp_path / "old.checkpoint"
+    key = dict(old, numerics={k: v for k, v in old["numerics"].items() if k != "end_time_s"})
+    with open(ckpt, "wb") as fh:  # np.savez would append .npz to a path name
+        np.savez(fh, case_json=np.array(json.dumps(key, sort_keys=True)))
+    assert slug.checkpoint_problem(ckpt, case) is None
+    other = _short_periodic()
+    other["grains"]["friction"] = 0.3
+    assert slug.checkpoint_problem(ckpt, other) == "checkpoint of a different case"
+
+
+def test_feed_block_shorter_than_three_search_cells_is_one_line_error():
+    case = _case("strauss_horizontal")
+    case["feed"]["block_length_m"] = 0.004
+    with pytest.raises(ValueError, match=r"^feed.block_length_m = 0.004: allowed >= 0.00504 m") as err:
+        slug.validate_slug_case(case)
+    assert "\n" not in str(err.value)
 
 
 def test_coupled_loop_one_and_two_threads_bit_identical(tmp_path):

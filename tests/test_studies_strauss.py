@@ -215,3 +215,4 @@ def test_from_state_continues_the_horizontal_runs(tmp_path, monkeypatch):
     monkeypatch.setattr(slug, "_atomic_savez", real)
     monkeypatch.chdir(tmp_path)
     assert study("--from-state", "short.nc.checkpoint", "-o", "out") == 2
+    assert study("--from-state", "state.npz", "--only", "vertical", "-o", "out") == 2  # nothing to continue

@@ -141,6 +141,9 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
         runs_ = ablation_cases(args.quick, names, labels, getattr(args, "parcels", None))
     except CaseError as exc:
         raise _BadInput(str(exc)) from None
+    if not runs_:
+        raise _BadInput(f"--variants {args.variants}: none of them applies to scenes {', '.join(names)} "
+                        f"(a collision-only departure has no run in a two-way scene)")
     records = []
     for i, (name, scene, label, case) in enumerate(runs_, 1):
         records.append(run_case(args, name, case, outdir, f"[ablation {i}/{len(runs_)}] {name}",

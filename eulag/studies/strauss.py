@@ -404,6 +404,9 @@ def study_strauss(args, outdir: Path, t_start: float) -> int:
     plan = study_cases(quick, groups, _float_list(getattr(args, "feeds", None), "--feeds"),
                        _float_list(getattr(args, "velocities", None), "--velocities"), window, long,
                        getattr(args, "from_state", None))
+    if not plan:
+        raise _BadInput(f"--only {getattr(args, 'only', None)}: no run of these groups starts from a state; "
+                        f"allowed with --from-state: default, curves, mass-flux, viscosity, friction")
     records = {}
     for i, (name, (grp, info, case)) in enumerate(plan.items(), 1):
         label = f"[{STUDY} {i}/{len(plan)}] {name}"
