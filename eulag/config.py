@@ -488,11 +488,12 @@ class PhysicsConfig(_Section):
         no longer has); ``"none"``: the seed's estimator as sampled.
     langevin_drift_form : str
         Time factor of the drift correction (1 - R) T_L (2/3) grad k of the fluid velocity seen:
-        ``"particle"`` (default; R = R_P, the particle's correlation with the crossing-trajectory
-        part, as PHYSICS.md states the MacInnes & Bracco term) or ``"lagrangian"`` (R = R_L, the
-        fluid's Lagrangian correlation: the mean-pressure-gradient drift of the fluid seen over the
-        step, Minier & Peirano 2001). Identical for tracers; for inertial particles the particle form
-        is larger, up to T_L/dt times.
+        ``"lagrangian"`` (default; R = R_L, the fluid's Lagrangian correlation: the drift
+        d<u'u'>/dx dt that the mean pressure gradient gives the fluid seen over the step, whatever
+        the particle's inertia, Minier & Peirano 2001) or ``"particle"`` (R = R_P, the particle's
+        correlation with the crossing-trajectory part, as PHYSICS.md states the MacInnes & Bracco
+        term; its mean fluid velocity seen is T_L d<u'u'>/dx instead of T_L* d<u'u'>/dx, T_L* the
+        shorter decorrelation time of the fluid seen). Identical for tracers.
     partner_correlation : str
         Where the stochastic collision model takes the Stokes number of its partner
         correlation R(St) = exp(-0.55 St^0.4): ``"particle"`` (default; at the real particle,
@@ -528,7 +529,7 @@ class PhysicsConfig(_Section):
     rotation: bool = _param(BOOLEAN, "particle rotation", default=True)
     langevin: bool = _param(BOOLEAN, "Langevin dispersion", default=True)
     langevin_drift_correction: bool = _param(BOOLEAN, "drift correction", default=True)
-    langevin_drift_form: str = _param(STRING, "time factor of the drift correction", default="particle",
+    langevin_drift_form: str = _param(STRING, "time factor of the drift correction", default="lagrangian",
                                       choices=("particle", "lagrangian"))
     gravity: bool = _param(BOOLEAN, "gravity", default=True)
     inter_particle_collisions: bool | None = _param(

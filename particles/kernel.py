@@ -125,7 +125,7 @@ class PhysicsOptions:
     rotation: bool = True
     langevin: bool = True
     drift_correction: bool = True
-    drift_form: str = "particle"
+    drift_form: str = "lagrangian"
     gravity: bool = True
     inter_particle_collisions: bool = True
     step_rule: str = "default"

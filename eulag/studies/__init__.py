@@ -111,7 +111,7 @@ def add_arguments(parser) -> None:
     _common(p, "scenes-ablation", only="comma-separated scenes, e.g. b,d (default: b,c,d,e,g,h)")
     p.add_argument("--variants", metavar="LIST",
                    help="comma-separated variants (default: every departure and 'paper'; also "
-                        "saffman_mei_lift=false, magnus_lift=false, langevin_drift_form=lagrangian; "
+                        "saffman_mei_lift=false, magnus_lift=false, langevin_drift_form=particle; "
                         "the output table lists the labels)")
     p.set_defaults(func=_entry(study_scenes_ablation))
 

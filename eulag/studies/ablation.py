@@ -41,11 +41,12 @@ PROXY_NUMERICS = {"axial_cells": 40, "radial_cells": 10, "azimuthal_cells": 20, 
 
 #: Model ingredients that are not departures from the paper, switched on request
 #: (``--variants``) to find which one decides a pattern: the lift forces off, and the drift
-#: correction's Lagrangian time factor.  Not in the default set.
+#: correction's time factor of the particle's correlation (the former default).  Not in the
+#: default set.
 INGREDIENT_VARIANTS: tuple[tuple[str, dict], ...] = (
     ("saffman_mei_lift=false", {"physics": {"saffman_mei_lift": False}}),
     ("magnus_lift=false", {"physics": {"magnus_lift": False}}),
-    ("langevin_drift_form=lagrangian", {"physics": {"langevin_drift_form": "lagrangian"}}),
+    ("langevin_drift_form=particle", {"physics": {"langevin_drift_form": "particle"}}),
 )
 #: Departures that only act through the inter-particle collisions (skipped for two-way scenes,
 #: where they would repeat the ``eulag`` row).
