@@ -69,6 +69,18 @@ def _cell_t(y, tube_r, h, n):
 
 
 @njit(**JIT_FLAGS)
+def _separation(a, i, b, j, periodic, length):
+    """a_i − b_j (3 components), the axial one the nearest periodic image in a periodic tube."""
+    rx = a[i, 0] - b[j, 0]
+    if periodic:
+        if rx > 0.5 * length:
+            rx -= length
+        elif rx < -0.5 * length:
+            rx += length
+    return rx, a[i, 1] - b[j, 1], a[i, 2] - b[j, 2]
+
+
+@njit(**JIT_FLAGS)
 def build_cells(pos, status, x0, hx, ncx, ht, nct, tube_r, periodic, length, cell_start, items):
     """Counting sort of the non-GONE grains into cells (ncx × nct × nct, x fastest-varying last).
 
@@ -145,14 +157,7 @@ def build_neighbours(pos, status, cell_start, items, x0, hx, ncx, ht, nct, perio
                         j = items[k]
                         if j == i:
                             continue
-                        rx = xi - pos[j, 0]
-                        if periodic:
-                            if rx > 0.5 * length:
-                                rx -= length
-                            elif rx < -0.5 * length:
-                                rx += length
-                        ry = yi - pos[j, 1]
-                        rz = zi - pos[j, 2]
+                        rx, ry, rz = _separation(pos, i, pos, j, periodic, length)
                         if rx * rx + ry * ry + rz * rz < reach2:
                             if m >= cap:
                                 return -1
@@ -190,14 +195,7 @@ def _contact_forces(pos, vel, omg, status, nbr_start, nbr, periodic, length,
             zi = pos[i, 2]
             for k in range(nbr_start[i], nbr_start[i + 1]):
                 j = nbr[k]
-                rx = xi - pos[j, 0]
-                if periodic:
-                    if rx > 0.5 * length:
-                        rx -= length
-                    elif rx < -0.5 * length:
-                        rx += length
-                ry = yi - pos[j, 1]
-                rz = zi - pos[j, 2]
+                rx, ry, rz = _separation(pos, i, pos, j, periodic, length)
                 r2 = rx * rx + ry * ry + rz * rz
                 if r2 >= d2 or r2 == 0.0:
                     continue
@@ -332,14 +330,7 @@ def _make_run_steps(cf, kk, dr):
             kk(vp, wp, status, force, torque, gas_force, gx, gy, gz, mass, inertia, h)
             if not stale:
                 for i in range(n):
-                    ex = pos[i, 0] - pos_ref[i, 0]
-                    if periodic:
-                        if ex > 0.5 * length:
-                            ex -= length
-                        elif ex < -0.5 * length:
-                            ex += length
-                    ey = pos[i, 1] - pos_ref[i, 1]
-                    ez = pos[i, 2] - pos_ref[i, 2]
+                    ex, ey, ez = _separation(pos, i, pos_ref, i, periodic, length)
                     if ex * ex + ey * ey + ez * ez > lim2:
                         stale = True
                         break

@@ -430,7 +430,9 @@ class _Simulation:
         st["phi"], st["u"] = self.phi, self.u
         return st
 
-    def load(self, st):
+    def _load_grains_and_gas(self, st) -> dict:
+        """Grains, gas pressure, gas force, φ, u, time and the feed's next block from the
+        arrays ``st`` of a checkpoint or state; returns its scalars."""
         from dem import Grains
         self.grains = Grains.from_state({k[2:]: st[k] for k in st if k.startswith("g_")})
         self.darcy.load_state({"p": st["d_p"], "G": st["d_G"]})
@@ -438,9 +440,16 @@ class _Simulation:
         self.gas_force = np.zeros((len(self.grains.status), 3))
         self.gas_force[:n] = st["gas_force"]
         scal = json.loads(str(st["scalars"]))
-        self.gas_step, self.next_gid, self.outflow = scal["gas_step"], scal["next_gid"], scal["outflow"]
-        self.lost, self.max_overlap, self.phi_clipped = scal["lost"], scal["max_overlap"], scal["phi_clipped"]
+        self.gas_step, self.next_gid = scal["gas_step"], scal["next_gid"]
         self.feed.next_block = scal["next_block"]
+        self.phi, self.u = st["phi"], st["u"]
+        self.work = {}
+        return scal
+
+    def load(self, st):
+        scal = self._load_grains_and_gas(st)
+        self.outflow = scal["outflow"]
+        self.lost, self.max_overlap, self.phi_clipped = scal["lost"], scal["max_overlap"], scal["phi_clipped"]
         self.feed_origin = tuple(scal.get("feed_origin", (0.0, 0)))
         self.t_start = scal.get("t_start", 0.0)
         self.lost_reasons = scal["lost_reasons"]
@@ -452,22 +461,12 @@ class _Simulation:
             a = st["rec_" + k]
             self.rec[k] = [row for row in a] if a.ndim > 1 else a.tolist()
         self.slugs = [tuple(r) for r in st["slugs"]]
-        self.phi, self.u = st["phi"], st["u"]
-        self.work = {}
 
     def start_from(self, st):
         """Continue from a saved state (a checkpoint or :func:`save_state` file of a compatible
         case) with this case's parameters: grains, gas and time from the state; records,
         outflow, losses and the overlap maximum start afresh."""
-        from dem import Grains
-        self.grains = Grains.from_state({k[2:]: st[k] for k in st if k.startswith("g_")})
-        self.darcy.load_state({"p": st["d_p"], "G": st["d_G"]})
-        n = self.grains.n
-        self.gas_force = np.zeros((len(self.grains.status), 3))
-        self.gas_force[:n] = st["gas_force"]
-        scal = json.loads(str(st["scalars"]))
-        self.gas_step, self.next_gid = scal["gas_step"], scal["next_gid"]
-        self.feed.next_block = scal["next_block"]
+        scal = self._load_grains_and_gas(st)
         s0, step0 = scal.get("feed_origin", (0.0, 0))
         v_old = scal.get("feed_speed", _state_feed_speed(st))
         if v_old != self.v_feed:  # the feed continues from where it stood, at this case's speed
@@ -475,8 +474,6 @@ class _Simulation:
         else:
             self.feed_origin = (s0, step0)
         self.t_start = self.gas_step * self.gas_dt
-        self.phi, self.u = st["phi"], st["u"]
-        self.work = {}
 
     # --------------------------------------------------------------- dataset
     def dataset(self):

@@ -18,6 +18,7 @@ import pytest
 
 from dem import FREE, TentTransfer
 from eulag import slug
+from tests.slug_support import killed_after_checkpoint
 
 CASES = Path(__file__).resolve().parents[1] / "cases" / "slug"
 RT, R = 3.5e-3, 0.7e-3
@@ -104,20 +105,7 @@ def test_periodic_case_runs_without_losses(tmp_path):
 def test_resume_after_kill_is_bit_identical(tmp_path, monkeypatch):
     case = _short_periodic(end=0.03, ckpt=0.01)
     full = slug.run_slug(case, tmp_path / "a.nc", progress=False)
-    real = slug._atomic_savez
-    calls = []
-
-    def killed_after_second_checkpoint(path, state):
-        real(path, state)
-        calls.append(path)
-        if len(calls) == 2:
-            raise KeyboardInterrupt  # stands for kill -9 right after the checkpoint was written
-
-    monkeypatch.setattr(slug, "_atomic_savez", killed_after_second_checkpoint)
-    with pytest.raises(KeyboardInterrupt):
-        slug.run_slug(case, tmp_path / "b.nc", progress=False)
-    monkeypatch.setattr(slug, "_atomic_savez", real)
-    assert (tmp_path / "b.nc.checkpoint").exists()
+    assert killed_after_checkpoint(case, tmp_path / "b.nc", monkeypatch, n=2).exists()
     resumed = slug.run_slug(case, tmp_path / "b.nc", resume=True, progress=False)
     for name, v in full.data_vars.items():
         if name == "gas_solve_share":  # wall-clock
@@ -131,17 +119,7 @@ def test_resume_refuses_a_checkpoint_of_another_case(tmp_path, monkeypatch):
     from eulag import runs
 
     case = _short_periodic(end=0.03, ckpt=0.01)
-    real = slug._atomic_savez
-
-    def killed_after_first_checkpoint(path, state):
-        real(path, state)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(slug, "_atomic_savez", killed_after_first_checkpoint)
-    with pytest.raises(KeyboardInterrupt):
-        slug.run_slug(case, tmp_path / "c.nc", progress=False)
-    monkeypatch.setattr(slug, "_atomic_savez", real)
-    ckpt = tmp_path / "c.nc.checkpoint"
+    ckpt = killed_after_checkpoint(case, tmp_path / "c.nc", monkeypatch)
     assert slug.checkpoint_problem(ckpt, case) is None
     longer = _short_periodic(end=0.04, ckpt=0.01)
     assert slug.checkpoint_problem(ckpt, longer) is None
@@ -169,16 +147,7 @@ def test_run_continued_from_a_state_equals_the_uninterrupted_run(tmp_path, monke
     checkpoint without its records); with another friction it runs from the same grains; a state
     of a different tube or an end time before the state's stops with one line."""
     full = slug.run_slug(_short_fed(0.02), tmp_path / "full.nc", progress=False)
-    real = slug._atomic_savez
-
-    def killed_after_first_checkpoint(path, state):
-        real(path, state)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(slug, "_atomic_savez", killed_after_first_checkpoint)
-    with pytest.raises(KeyboardInterrupt):
-        slug.run_slug(_short_fed(0.02), tmp_path / "first.nc", progress=False)
-    monkeypatch.setattr(slug, "_atomic_savez", real)
+    killed_after_checkpoint(_short_fed(0.02), tmp_path / "first.nc", monkeypatch)
     state = slug.save_state(tmp_path / "first.nc.checkpoint", tmp_path / "state.npz")
     assert state.stat().st_size < (tmp_path / "first.nc.checkpoint").stat().st_size
     cont = _short_fed(0.02)

@@ -17,6 +17,7 @@ import xarray as xr
 from eulag import slug, studies
 from eulag.cli import main
 from eulag.studies import strauss
+from tests.slug_support import killed_after_checkpoint
 
 
 def study(*argv):
@@ -189,16 +190,7 @@ def test_from_state_continues_the_horizontal_runs(tmp_path, monkeypatch):
     statistics over the window's second half; a state of another tube stops with one line."""
     case = slug.validate_slug_case({"model": "dem-darcy", "numerics": {
         "end_time_s": 0.01, "output_interval_s": 0.005, "checkpoint_interval_s": 0.005}})
-    real = slug._atomic_savez
-
-    def killed_after_first_checkpoint(path, state):
-        real(path, state)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(slug, "_atomic_savez", killed_after_first_checkpoint)
-    with pytest.raises(KeyboardInterrupt):
-        slug.run_slug(case, tmp_path / "fill.nc", progress=False)
-    monkeypatch.setattr(slug, "_atomic_savez", real)
+    killed_after_checkpoint(case, tmp_path / "fill.nc", monkeypatch)
     state = slug.save_state(tmp_path / "fill.nc.checkpoint", tmp_path / "state.npz")
     plan = strauss.study_cases(False, from_state=state)
     assert plan and all(i["orientation"] == "horizontal" for g, i, c in plan.values())
@@ -209,10 +201,7 @@ def test_from_state_continues_the_horizontal_runs(tmp_path, monkeypatch):
     assert {i["eta_cP"] for g, i, c in plan.values()} == set(strauss.VISCOSITIES_CP)
     other = slug.validate_slug_case({"model": "dem-darcy", "tube": {"length_m": 0.07}, "numerics": {
         "cells_x": 20, "end_time_s": 0.01, "output_interval_s": 0.005, "checkpoint_interval_s": 0.005}})
-    monkeypatch.setattr(slug, "_atomic_savez", killed_after_first_checkpoint)
-    with pytest.raises(KeyboardInterrupt):
-        slug.run_slug(other, tmp_path / "short.nc", progress=False)
-    monkeypatch.setattr(slug, "_atomic_savez", real)
+    killed_after_checkpoint(other, tmp_path / "short.nc", monkeypatch)
     monkeypatch.chdir(tmp_path)
     assert study("--from-state", "short.nc.checkpoint", "-o", "out") == 2
     assert study("--from-state", "state.npz", "--only", "vertical", "-o", "out") == 2  # nothing to continue
