@@ -240,8 +240,9 @@ def test_sections_construct_and_validate_directly():
 
 
 def test_a_dataset_from_before_a_later_key_is_the_case_with_its_earlier_value():
-    """A result written before physics.partner_momentum and numerics.mirror_symmetry existed
-    ran with the partners' impulse discarded and without symmetry: rebuilt from its attributes
+    """A result written before physics.partner_momentum, numerics.mirror_symmetry and
+    physics.langevin_drift_form existed ran with the partners' impulse discarded, without
+    symmetry and with the drift term's factor (1 - R_P) T_L: rebuilt from its attributes
     it is that case, not today's default (config.LATER_KEYS), so --resume does not take it
     for a run of today's case."""
     from eulag.config import CASES_DIR, LATER_KEYS, Case
@@ -254,7 +255,9 @@ def test_a_dataset_from_before_a_later_key_is_the_case_with_its_earlier_value():
     assert rebuilt.physics.partner_momentum == "discarded"
     assert rebuilt.numerics.mirror_symmetry is False
     assert not same_case(old, today)
-    earlier = today.replace(physics={"partner_momentum": "discarded", "partner_correlation": "particle"},
+    assert rebuilt.physics.langevin_drift_form == "particle"
+    earlier = today.replace(physics={"partner_momentum": "discarded", "partner_correlation": "particle",
+                                     "langevin_drift_form": "particle"},
                             numerics={"mirror_symmetry": False})
     assert same_case(old, earlier)
     assert same_case(today.to_attrs(), today)  # a dataset of today keeps every key
