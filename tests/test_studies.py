@@ -190,14 +190,16 @@ RESULT_CASES = {
 @pytest.mark.parametrize("folder", sorted(RESULT_CASES))
 def test_committed_records_belong_to_the_shipped_cases(folder):
     """The run records in results/ (written before physics.partner_correlation,
-    physics.partner_momentum and numerics.mirror_symmetry existed) are the records of the
+    physics.partner_momentum, numerics.mirror_symmetry and physics.langevin_drift_form
+    existed) are the records of the
     study cases with those keys at their earlier behaviour (config.LATER_KEYS), so --resume
     on a fresh clone reports them, not re-runs; the key at another value is another case —
     today's defaults, mirror-symmetric sampling and the returned partner momentum, included:
     those cases are re-run."""
     found = 0
     for name, today in RESULT_CASES[folder]():
-        case = today.replace(numerics={"mirror_symmetry": False}, physics={"partner_momentum": "discarded"})
+        case = today.replace(numerics={"mirror_symmetry": False},
+                             physics={"partner_momentum": "discarded", "langevin_drift_form": "particle"})
         rec = ROOT / "results" / folder / f"{name}.record.json"
         if rec.is_file() and today.particles is not None:
             assert studies.read_record(rec, today) is None, name
