@@ -450,6 +450,8 @@ class CellGrid:
         self.periodic = bool(periodic)
         self.length = x1 - x0
         self.x0 = x0
+        if not skin >= 0.0:
+            raise ValueError(f"skin = {skin!r}: allowed a number >= 0 (grain diameters)")
         self.skin = skin * diameter
         reach = diameter + self.skin
         self.ncx = max(1, int(math.floor(self.length / reach)))
