@@ -468,7 +468,7 @@ class _Simulation:
         outflow, losses and the overlap maximum start afresh."""
         scal = self._load_grains_and_gas(st)
         s0, step0 = scal.get("feed_origin", (0.0, 0))
-        v_old = scal.get("feed_speed", _state_feed_speed(st))
+        v_old = scal["feed_speed"] if "feed_speed" in scal else _state_feed_speed(st)
         if v_old != self.v_feed:  # the feed continues from where it stood, at this case's speed
             self.feed_origin = (s0 + v_old * (self.gas_step - step0) * self.gas_dt, self.gas_step)
         else:

@@ -27,7 +27,7 @@ Per particle step:
    J = m[(u^{n+1} − u^n) − g′Δt] and u′_F·J);
 6. fields at x_{n+1}; the fluid velocity seen is updated by the Langevin model of
    Sommerfeld et al. (1993) with R_P = R_L(Δt) R_E(Δr), Δr = ∫(u_F − u_p)dt over the step, plus the
-   (1 − R_P) T_L ∂⟨u′_i u′_j⟩/∂x_j drift correction (or (1 − R_L) T_L, ``drift_form``);
+   (1 − R_L) T_L ∂⟨u′_i u′_j⟩/∂x_j drift correction (or (1 − R_P) T_L, ``drift_form``);
 7. wall collision (collisions.wall, which also mirrors u′_n) and the stochastic
    inter-particle collision against a fictitious partner drawn from the previous pass's
    cell statistics (collisions.interparticle);
@@ -94,7 +94,7 @@ class PhysicsOptions:
 
     saffman_mei_lift, magnus_lift, rotation, langevin, drift_correction, gravity,
     inter_particle_collisions : bool — terms of docs/physics.md–§4 (magnus needs rotation).
-    drift_form : "particle" | "lagrangian" — the drift correction's factor (1 − R_P) T_L (the
+    drift_form : "particle" | "lagrangian" (default) — the drift correction's factor (1 − R_P) T_L (the
         particle's correlation, crossing trajectories included) or (1 − R_L) T_L (the fluid's
         Lagrangian correlation alone: the mean-pressure-gradient drift of the fluid seen acting
         over the step, as in Minier & Peirano 2001); the two agree for tracers.
