@@ -35,6 +35,10 @@ Per particle step:
    backwards is reflected (counted); one exceeding the residence-time or step cap is
    stopped and counted STUCK; a non-finite state is counted LOST (must never happen).
 
+A batch is swept window by window (``TrackSettings.window_stations`` stations; a parcel is
+suspended where a step ends beyond its window and resumed in the next), which keeps the
+stations the batch works on in the cache and changes no trajectory (docs/numerics.md).
+
 Collision velocity jumps are not part of J, so the momentum budget
 Σ Ṅ J = Σ Ṅ m [u_out − u_in − g′ t_res − Δu_wall − Δu_pp − Δu_inlet] closes to round-off.
 """
@@ -69,7 +73,7 @@ from .layout import (A_BETA, A_J, A_PP, A_PPK, CS_APP, A_KSEEN, A_MU, A_MUU, A_N
                      C_REBOUNDS, C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK,
                      CS_RMS, CS_ST, CS_U, CS_WM, CS_WRMS, N_ANGLE_BINS, N_SPEED_BINS, NACC, NWALL,
                      P_DGAMMA, P_DP, P_GRAV, P_INJ_RMS, P_MAXSTEPS, P_MU, P_NDOT, P_RHO_F,
-                     P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, S_EXITED, S_LOST,
+                     P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, P_WINDOW, S_EXITED, S_LOST,
                      S_STUCK, W_ANGLE, W_COUNT, W_SPEED)
 
 __all__ = ["PhysicsOptions", "make_motion", "make_tracker", "walk_segment", "MAX_SEGMENTS"]
@@ -83,6 +87,17 @@ warnings.filterwarnings("ignore", message='Cannot cache compiled function "track
 C_T = 0.24  # T_L = C_T σ²/ε (Sommerfeld 2001)
 C_L = 3.0  # L_E = C_L T_L σ
 NSTATE = 19  # per-parcel final state columns, see make_tracker
+# columns of a parcel's suspended state between two windows of the sweep (track_parcels)
+SU_POS, SU_VEL, SU_OMEGA, SU_USEEN = 0, 3, 6, 9
+SU_FIELDS = 12  # the NF interpolated fields at the parcel
+SU_CELL = SU_FIELDS + NF  # its cell (i, j, k)
+SU_T = SU_CELL + 3
+SU_STEPS = SU_T + 1
+SU_SPARE = SU_STEPS + 1  # (have_spare, spare): the normal kept for the next step
+SU_INLET = SU_SPARE + 2  # injection position
+SU_DRAWS = SU_INLET + 3  # draw counters of the dispersion, wall and collision streams
+SU_ACTIVE = SU_DRAWS + 3  # 1: suspended, to be resumed in the next window
+NSUSP = SU_ACTIVE + 1
 MAX_SEGMENTS = 512  # cells one step may cross (a step crosses ~1; the rest goes to the last cell)
 _WALL_REDO = 0.05  # shorten a wall-crossing step only if this fraction of it remains before contact
 _DEG = 180.0 / math.pi
@@ -473,7 +488,7 @@ def make_tracker(options=PhysicsOptions()):
     def track_parcels(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                       x_centres, tab, axis, stats, prm, out, state, dvals, fvals, pos, vel, omega,
                       useen, uf, imp, dv, partner, seg_cell, seg_frac, mean_own, rms, wmean, wrms,
-                      saved, ray_sin, ray_cos, rng_inj, rng_disp, rng_wall, rng_pp):
+                      saved, ray_sin, ray_cos, rng_inj, rng_disp, rng_wall, rng_pp, susp):
         if len(key) == 0:  # never true; keeps ``key`` in the closure (cache key)
             return
         nx = x_edges.shape[0] - 1
@@ -499,47 +514,92 @@ def make_tracker(options=PhysicsOptions()):
         dxc = length / nx
         speed_max = prm[P_SPEEDMAX]
         two_pi = 2.0 * math.pi
-        for q in range(count):
+        # the sweep: every parcel is tracked through window 0 (the first ``per`` stations), then
+        # every parcel still in the pipe through window 1, ...; a parcel whose step ends beyond
+        # its window is suspended (susp) and resumed there in the next window.  The parcel's
+        # trajectory is the same as if tracked in one go (the suspended state is everything a
+        # step carries over); the sampled sums differ only in their order (round-off).  Between
+        # them the parcels of a batch then read and write the same few stations' fields, cell
+        # statistics and accumulators, which stay in the cache.
+        per = int(prm[P_WINDOW])
+        if per <= 0 or per >= nx:
+            per = nx
+        nwin = (nx + per - 1) // per
+        for item in range(nwin * count):
+            win = item // count
+            q = item - win * count
             pid = first + q
-            _key_rng(rng_inj, seed, pass_, pid, STREAM_INJECTION)
-            _key_rng(rng_disp, seed, pass_, pid, STREAM_DISPERSION)
-            _key_rng(rng_wall, seed, pass_, pid, STREAM_WALL)
-            _key_rng(rng_pp, seed, pass_, pid, STREAM_COLLISION)
-            # ---- injection: uniform over the section, Gaussian velocity (seed)
-            u1, u2 = next_uniform_pair(rng_inj)
-            rr = r_contact * math.sqrt(u1)
-            th = two_pi * u2
-            pos[0] = 0.0
-            pos[1] = rr * math.sin(th)
-            pos[2] = rr * math.cos(th)
-            x_in = pos[0]
-            y_in = pos[1]
-            z_in = pos[2]
-            g0, g1 = next_normal_pair(rng_inj)
-            g2, g3 = next_normal_pair(rng_inj)
-            vel[0] = prm[P_U0] + prm[P_INJ_RMS] * g0
-            vel[1] = prm[P_INJ_RMS] * g1
-            vel[2] = prm[P_INJ_RMS] * g2
-            omega[:] = 0.0
-            ci, cj, ck = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
-                                         radius, nu, fvals)
-            if langevin:
-                sig = math.sqrt(2.0 * fvals[F_K] / 3.0)
-                g4, g5 = next_normal_pair(rng_inj)
-                useen[0] = sig * g3
-                useen[1] = sig * g4
-                useen[2] = sig * g5
+            x_hi = x_edges[min((win + 1) * per, nx)] if win + 1 < nwin else np.inf
+            if win > 0:
+                if susp[q, SU_ACTIVE] == 0.0:
+                    continue
+                # ---- resume the parcel where its previous window left it
+                for c in range(3):
+                    pos[c] = susp[q, SU_POS + c]
+                    vel[c] = susp[q, SU_VEL + c]
+                    omega[c] = susp[q, SU_OMEGA + c]
+                    useen[c] = susp[q, SU_USEEN + c]
+                for c in range(NF):
+                    fvals[c] = susp[q, SU_FIELDS + c]
+                ci = int(susp[q, SU_CELL])
+                cj = int(susp[q, SU_CELL + 1])
+                ck = int(susp[q, SU_CELL + 2])
+                t = susp[q, SU_T]
+                steps = int(susp[q, SU_STEPS])
+                have_spare = susp[q, SU_SPARE] != 0.0
+                spare = susp[q, SU_SPARE + 1]
+                x_in = susp[q, SU_INLET]
+                y_in = susp[q, SU_INLET + 1]
+                z_in = susp[q, SU_INLET + 2]
+                _key_rng(rng_disp, seed, pass_, pid, STREAM_DISPERSION)
+                _key_rng(rng_wall, seed, pass_, pid, STREAM_WALL)
+                _key_rng(rng_pp, seed, pass_, pid, STREAM_COLLISION)
+                rng_disp[RNG_DRAW] = np.int64(susp[q, SU_DRAWS])
+                rng_wall[RNG_DRAW] = np.int64(susp[q, SU_DRAWS + 1])
+                rng_pp[RNG_DRAW] = np.int64(susp[q, SU_DRAWS + 2])
+                status = 0
+                susp[q, SU_ACTIVE] = 0.0
             else:
-                useen[:] = 0.0
-            out[off_cnt + C_INJECTED] += 1.0
-            for c in range(3):
-                out[off_bud + B_MOM_IN + c] += w_m * vel[c]
-            out[off_bud + B_MASS_IN] += w_m
-            t = 0.0
-            steps = 0
-            status = 0
-            have_spare = False
-            spare = 0.0
+                _key_rng(rng_inj, seed, pass_, pid, STREAM_INJECTION)
+                _key_rng(rng_disp, seed, pass_, pid, STREAM_DISPERSION)
+                _key_rng(rng_wall, seed, pass_, pid, STREAM_WALL)
+                _key_rng(rng_pp, seed, pass_, pid, STREAM_COLLISION)
+                # ---- injection: uniform over the section, Gaussian velocity (seed)
+                u1, u2 = next_uniform_pair(rng_inj)
+                rr = r_contact * math.sqrt(u1)
+                th = two_pi * u2
+                pos[0] = 0.0
+                pos[1] = rr * math.sin(th)
+                pos[2] = rr * math.cos(th)
+                x_in = pos[0]
+                y_in = pos[1]
+                z_in = pos[2]
+                g0, g1 = next_normal_pair(rng_inj)
+                g2, g3 = next_normal_pair(rng_inj)
+                vel[0] = prm[P_U0] + prm[P_INJ_RMS] * g0
+                vel[1] = prm[P_INJ_RMS] * g1
+                vel[2] = prm[P_INJ_RMS] * g2
+                omega[:] = 0.0
+                ci, cj, ck = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
+                                             radius, nu, fvals)
+                if langevin:
+                    sig = math.sqrt(2.0 * fvals[F_K] / 3.0)
+                    g4, g5 = next_normal_pair(rng_inj)
+                    useen[0] = sig * g3
+                    useen[1] = sig * g4
+                    useen[2] = sig * g5
+                else:
+                    useen[:] = 0.0
+                out[off_cnt + C_INJECTED] += 1.0
+                for c in range(3):
+                    out[off_bud + B_MOM_IN + c] += w_m * vel[c]
+                out[off_bud + B_MASS_IN] += w_m
+                t = 0.0
+                steps = 0
+                status = 0
+                have_spare = False
+                spare = 0.0
+            suspended = False
             while True:
                 # ---- fields at x_n (fvals), time step
                 kk = fvals[F_K]
@@ -825,6 +885,32 @@ def make_tracker(options=PhysicsOptions()):
                 if t >= t_cap or steps >= max_steps:
                     status = S_STUCK
                     break
+                if pos[0] >= x_hi:  # beyond this window: on in the next
+                    suspended = True
+                    break
+            if suspended:
+                for c in range(3):
+                    susp[q, SU_POS + c] = pos[c]
+                    susp[q, SU_VEL + c] = vel[c]
+                    susp[q, SU_OMEGA + c] = omega[c]
+                    susp[q, SU_USEEN + c] = useen[c]
+                for c in range(NF):
+                    susp[q, SU_FIELDS + c] = fvals[c]
+                susp[q, SU_CELL] = ci
+                susp[q, SU_CELL + 1] = cj
+                susp[q, SU_CELL + 2] = ck
+                susp[q, SU_T] = t
+                susp[q, SU_STEPS] = steps
+                susp[q, SU_SPARE] = 1.0 if have_spare else 0.0
+                susp[q, SU_SPARE + 1] = spare
+                susp[q, SU_INLET] = x_in
+                susp[q, SU_INLET + 1] = y_in
+                susp[q, SU_INLET + 2] = z_in
+                susp[q, SU_DRAWS] = rng_disp[RNG_DRAW]
+                susp[q, SU_DRAWS + 1] = rng_wall[RNG_DRAW]
+                susp[q, SU_DRAWS + 2] = rng_pp[RNG_DRAW]
+                susp[q, SU_ACTIVE] = 1.0
+                continue
             # ---- bookkeeping of the fate
             out[off_cnt + C_STEPS] += steps
             out[off_bud + B_RESIDENCE] += w_m * t
@@ -863,12 +949,15 @@ def make_tracker(options=PhysicsOptions()):
             return
         ray = np.arange(nt + 1) * (2.0 * math.pi / nt)
         rngs = np.zeros((4, RNG_STATE_SIZE), dtype=np.int64)
+        n_susp = count if prm[P_WINDOW] > 0.0 else 0  # suspended parcel states (one window: none)
+        susp = np.empty((n_susp, NSUSP))
         _TRACK_PARCELS(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                        x_centres, tab, axis, stats, prm, out, state, np.empty(NF), np.empty(NF),
                        np.empty(3), np.empty(3), np.zeros(3), np.zeros(3), np.empty(3), np.empty(3),
                        np.zeros(3), np.empty(9), np.empty(MAX_SEGMENTS, dtype=np.int64),
                        np.empty(MAX_SEGMENTS), np.empty(3), np.empty(3), np.empty(3), np.empty(3),
-                       np.empty(6), np.sin(ray), np.cos(ray), rngs[0], rngs[1], rngs[2], rngs[3])
+                       np.empty(6), np.sin(ray), np.cos(ray), rngs[0], rngs[1], rngs[2], rngs[3],
+                       susp)
 
     track_batch = njit(**JIT_FLAGS)(_with_globals(track_batch, _TRACK_PARCELS=track_parcels))
 

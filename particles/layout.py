@@ -105,7 +105,8 @@ P_TCAP = 11  # residence-time cap [s]
 P_MAXSTEPS = 12  # step cap per parcel [-]
 P_SPEEDMAX = 13  # upper end of the impact-speed histogram [m/s]
 P_MIN_VISITS = 14  # samples a cell needs for collision statistics [-]
-NPRM = 15
+P_WINDOW = 15  # stations per window of the tracking sweep (0: all; kernel.track_parcels) [-]
+NPRM = 16
 
 # parcel status codes (STYLE.md: integer codes, counted by the driver)
 S_ACTIVE = 0
