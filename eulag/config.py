@@ -595,6 +595,14 @@ class NumericsConfig(_Section):
         Outer-iteration cap of the periodic gas solve between two Lagrangian passes, >= 1
         (default 300): the coupling loop iterates on, so each gas solve need not converge
         fully; convergence of the run requires the last one to.
+    gas_station_retries : str
+        ``"always"`` (default): every gas solve of a developing pipe retries a stalled station
+        (``rans.solve``, the coupled cross-flow step, more relaxation, an extension of its
+        iterations); ``"near-convergence"``: only once the last pass's coupling residual is
+        within ``coupling_tolerance``, in the final passes and in the solve on the averaged
+        final sources; earlier solves keep a stalled station's first attempt. On scene h's
+        pass-3 sources the retries take two thirds of the solve's time and change nothing
+        downstream of the stalled stations (docs/numerics.md, "Gas solver").
     step_factor : float
         Factor c of the particle time step c · min(...) [1], in (0, 1] (default 0.5).
     batch_size : int
@@ -641,6 +649,11 @@ class NumericsConfig(_Section):
     gas_max_iterations: int = _param(INTEGER, "gas-solver iteration cap", default=3000, ge=1)
     gas_iterations_per_pass: int = _param(INTEGER, "periodic gas iterations per coupling pass",
                                           default=300, ge=1)
+    gas_station_retries: str = _param(STRING, "when the developing gas march retries a stalled "
+                                      "station (coupled step, more relaxation, extension): "
+                                      "in every coupled solve, or only once the coupling residual "
+                                      "is within its tolerance and in the final passes",
+                                      default="always", choices=("always", "near-convergence"))
     step_factor: float = _param(NUMBER, "particle time-step factor", default=0.5, gt=0.0, le=1.0)
     batch_size: int = _param(INTEGER, "parcels per batch", default=4096, ge=1)
     batches_per_superbatch: int = _param(INTEGER, "batches per super-batch", default=8, ge=1)
@@ -715,7 +728,8 @@ PROFILES = ("eulag", "paper")
 LATER_KEYS: dict[str, Any] = {"physics.partner_correlation": "particle",
                                "physics.langevin_drift_form": "particle",
                                "physics.partner_momentum": "discarded",
-                               "numerics.mirror_symmetry": "false"}
+                               "numerics.mirror_symmetry": "false",
+                               "numerics.gas_station_retries": "always"}
 
 
 def comparable_attrs(attrs: dict) -> dict:

@@ -640,15 +640,18 @@ class CouplingLoop:
     # there, a failed solve goes straight to the halving of the source relaxation α.
     _GAS_RELAXATION = ((1.0, 1.0), (0.7, 1.0), (0.5, 0.7))
 
-    def _solve_gas(self, sources, final=False):
+    def _solve_gas(self, sources, final=False, residual=math.nan):
         """The gas field with ``sources`` (None: single phase), its wall time and the implicit
         k-ε relaxation it needed (1 unless a first attempt diverged).  ``final``: a solve to
         convergence (periodic mode: not capped at gas_iterations_per_pass), from the last
-        iterate."""
+        iterate.  ``residual``: the coupling residual of ``sources`` (numerics.gas_station_retries)."""
         n = self.case.numerics
         g = self.case.gas
         initial = self.gas if self.mesh.mode == "periodic" else None
         inner = sources is not None and self.mesh.mode == "periodic" and not final
+        retries = bool(n.gas_station_retries == "always" or sources is None or final
+                       or self.phase == "final"
+                       or (np.isfinite(residual) and residual <= n.coupling_tolerance))
         cap = n.gas_iterations_per_pass if inner else n.gas_max_iterations
         t0 = time.perf_counter()
         try:
@@ -659,7 +662,7 @@ class CouplingLoop:
                                         g.inlet_epsilon, sources, tol=n.gas_tolerance,
                                         max_iterations=cap, initial=initial,
                                         turbulence_relaxation=tr, momentum_relaxation=mr,
-                                        require_convergence=not inner)
+                                        require_convergence=not inner, station_retries=retries)
                     sr = field_.station_relaxation
                     used = min(tr, float(np.min(sr))) if sr is not None else tr
                     break
@@ -764,7 +767,7 @@ class CouplingLoop:
             while True:
                 relaxed, residual = self._relax(computed, sample, alpha)
                 try:
-                    gas, t_gas, gas_relax = self._solve_gas(self._gas_sources(relaxed))
+                    gas, t_gas, gas_relax = self._solve_gas(self._gas_sources(relaxed), residual=residual)
                     break
                 except rans.SolverDivergence as err:
                     if alpha / 2 < MIN_RELAXATION:

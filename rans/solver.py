@@ -681,6 +681,7 @@ def solve(
     progress=False,
     require_convergence=True,
     production_limit=None,
+    station_retries=True,
 ):
     """Solve the steady gas flow on ``mesh``; returns a :class:`GasField`.
 
@@ -698,6 +699,10 @@ def solve(
     turbulence_relaxation, momentum_relaxation: implicit under-relaxation of k and epsilon,
     and of the momentum equations (the march uses the first only, and retries a diverging
     station with more of both: _march_station, ``GasField.station_relaxation``).
+    station_retries (developing): False keeps a stalled station's first attempt (the
+    accelerated one where it applies) instead of retrying it with the coupled step, more
+    relaxation and the extension of _march_station; a station that does not converge is then
+    returned sooner, unconverged, as after the retries.
     cross_flow_solver: "coupled" (direct solve of cross-section momentum and continuity),
     "simplec", or None: coupled in the periodic mode, SIMPLEC in the march (where the strong
     axial term makes it converge in a few iterations at a fraction of the cost).
@@ -835,7 +840,7 @@ def solve(
             start = None if initial is None else _warm_state(initial, i, sec, gas.density)
             st, ok, iters[i], station_relax[i], station_coupled[i], station_change[i] = _march_station(
                 solver, prev1, hist, c0, h, src, laminar, turbulence_relaxation, station_iterations, stol,
-                residuals, start)
+                residuals, start, retries=station_retries)
             station_ok[i] = ok
             converged &= ok
             _store(out, G, tau, i, st)
@@ -885,7 +890,7 @@ def solve(
 
 
 def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_iterations, stol, residuals,
-                   start=None):
+                   start=None, retries=True):
     """Iterate one station of the march to ``stol``: returns (state, converged, iterations,
     relaxation used, whether the coupled cross-flow step was used, the last iteration's
     (velocity, k-eps) change of the state, _StationSolver.last_change).
@@ -928,6 +933,8 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
        neither grows nor falls, which no reading of ``_still_converging`` can tell from a
        wandering iteration, and which neither the relaxations nor the coupled step get past.
 
+    ``retries=False`` keeps only the first attempt (after the accelerated one): no retry 1–3.
+
     An attempt that is still converging when its iterations run out (the largest change of the
     last quarter of them fell from the quarter before, or the last quarter's changes fall on a
     straight line in log(change), at a rate that reaches the tolerance within
@@ -955,6 +962,8 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
             attempts.append((r, m, coupled, False))
             if m == alpha_u and not coupled:  # k-eps relaxation alone, with the coupled step
                 attempts.append((r, m, True, False))
+    if not retries:
+        attempts = attempts[:1]
     if ANDERSON_DEPTH > 0 and not laminar:
         attempts.insert(0, (relax, alpha_u, coupled, True))
     best = None
@@ -1010,7 +1019,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                 continue
             if best is None or ch / min(r, m) < best[0]:  # the relaxed change, scaled back
                 best = (ch / min(r, m), st, it, min(r, m), cp, last)
-        if resume is not None and resume[1] < STATION_EXTENSION * resume[2]:
+        if retries and resume is not None and resume[1] < STATION_EXTENSION * resume[2]:
             # the last resort: the plain attempt iterates on from where its iterations ran out, up
             # to STATION_EXTENSION times its cap (unless it was extended that far already),
             # through a slow drift that none of the attempts above gets past (scene h,

@@ -469,11 +469,11 @@ def test_a_failed_gas_solve_caps_the_recovery(monkeypatch):
     orig = loop._solve_gas
     calls = []
 
-    def solve_gas(sources):
+    def solve_gas(sources, **kwargs):
         calls.append(sources is not None)
         if sources is not None and len(calls) == 2:
             raise rans.SolverDivergence("gas solve diverged: u_x = -1 (test)")
-        return orig(sources)
+        return orig(sources, **kwargs)
 
     monkeypatch.setattr(loop, "_solve_gas", solve_gas)
     loop.step()
@@ -546,12 +546,12 @@ def test_a_failing_gas_solve_is_retried_with_half_the_relaxation_and_the_user_is
     orig = loop._solve_gas
     with_sources = []
 
-    def flaky(sources):
+    def flaky(sources, **kwargs):
         if sources is not None:
             with_sources.append(1)
             if len(with_sources) == 1:
                 raise rans.SolverDivergence("k = nan at x = 0.1 m (test)")
-        return orig(sources)
+        return orig(sources, **kwargs)
 
     loop._solve_gas = flaky
     state = loop.step()
@@ -742,3 +742,33 @@ def test_the_loop_stops_on_the_collision_momentum_guard(monkeypatch, tmp_path):
     assert again.pass_index == 4
     with pytest.raises(coupling.CouplingError, match=r"pass 5: "):
         again.run()
+
+
+@pytest.mark.parametrize("setting, tolerance, retried", [
+    ("always", 1.5, [True, True, True]),
+    # single-phase solve, then the first two passes: the first pass has no residual (NaN), the
+    # second's is well above 1e-3 and below 1000
+    ("near-convergence", 1e-3, [True, False, False]),
+    ("near-convergence", 1000.0, [True, False, True]),
+])
+def test_the_gas_march_retries_stalled_stations_as_the_case_says(monkeypatch, setting, tolerance, retried):
+    """numerics.gas_station_retries = "near-convergence" lets the developing march keep a stalled
+    station's first attempt while the coupling residual is above its tolerance; the single-phase
+    solve and every solve within the tolerance retry as before."""
+    import rans
+
+    loop = CouplingLoop(small_case(**{"pipe.mode": "developing", "pipe.length": 0.2,
+                                      "numerics.axial_cells": 10,
+                                      "numerics.gas_station_retries": setting,
+                                      "numerics.coupling_tolerance": tolerance}))
+    real = rans.solve
+    flags = []
+
+    def solve(*args, **kwargs):
+        flags.append(kwargs["station_retries"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(rans, "solve", solve)
+    loop.step()
+    loop.step()
+    assert flags == retried

@@ -710,3 +710,33 @@ def test_a_march_warm_started_from_its_own_solution_stops_after_two_iterations(w
         coarse = PipeMesh.build(D, 0.3, "developing", axial_cells=10, radial_cells=8, azimuthal_cells=12,
                                 bulk_velocity=U, density=RHO, viscosity=MU)
         solve(coarse, GAS, U, inlet_k=0.4, inlet_epsilon=50.0, tol=tol, initial=a)
+
+
+def test_a_station_without_retries_keeps_its_first_attempt():
+    """_march_station(retries=False) iterates a stalled station once, to its cap, and returns it
+    unconverged; with retries it goes on through the coupled step and the relaxations."""
+    from rans import solver as rs
+
+    class Stalled:
+        alpha_u, coupled, last_change = 1.0, False, (1.0, 1.0)
+
+        def __init__(self):
+            self.calls = 0
+
+        def iterate(self, st, *args):
+            self.calls += 1
+            return 0.5  # a change that never falls
+
+    class State:
+        def copy(self):
+            return State()
+
+    counts = {}
+    for retries in (False, True):
+        s = Stalled()
+        _, ok, *_ = rs._march_station(s, State(), None, None, None, None, True, 1.0, (2, 20), 1e-6, [],
+                                      retries=retries)
+        assert not ok
+        counts[retries] = s.calls
+    assert counts[False] == 20
+    assert counts[True] > 3 * counts[False]
