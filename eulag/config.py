@@ -600,7 +600,8 @@ class NumericsConfig(_Section):
         (``rans.solve``, the coupled cross-flow step, more relaxation, an extension of its
         iterations); ``"near-convergence"``: only once the last pass's coupling residual is
         within ``coupling_tolerance``, in the final passes and in the solve on the averaged
-        final sources; earlier solves keep a stalled station's first attempt. On scene h's
+        final sources; earlier solves keep a stalled station's first attempt (a diverging
+        one is retried either way). On scene h's
         pass-3 sources the retries take two thirds of the solve's time and change nothing
         downstream of the stalled stations (docs/numerics.md, "Gas solver").
     step_factor : float

@@ -699,10 +699,10 @@ def solve(
     turbulence_relaxation, momentum_relaxation: implicit under-relaxation of k and epsilon,
     and of the momentum equations (the march uses the first only, and retries a diverging
     station with more of both: _march_station, ``GasField.station_relaxation``).
-    station_retries (developing): False keeps a stalled station's first attempt (the
-    accelerated one where it applies) instead of retrying it with the coupled step, more
-    relaxation and the extension of _march_station; a station that does not converge is then
-    returned sooner, unconverged, as after the retries.
+    station_retries (developing): False returns a station whose first plain attempt stalls
+    (its iterations run out without divergence) as it is, unconverged, instead of retrying it
+    with the coupled step, more relaxation and the extension of _march_station; a diverging
+    attempt is retried either way.
     cross_flow_solver: "coupled" (direct solve of cross-section momentum and continuity),
     "simplec", or None: coupled in the periodic mode, SIMPLEC in the march (where the strong
     axial term makes it converge in a few iterations at a fraction of the cost).
@@ -933,7 +933,9 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
        neither grows nor falls, which no reading of ``_still_converging`` can tell from a
        wandering iteration, and which neither the relaxations nor the coupled step get past.
 
-    ``retries=False`` keeps only the first attempt (after the accelerated one): no retry 1–3.
+    ``retries=False``: a station whose attempt stalls (its iterations run out without
+    divergence) is returned as it is, without the further attempts and the extension; one
+    that diverges is retried as above.
 
     An attempt that is still converging when its iterations run out (the largest change of the
     last quarter of them fell from the quarter before, or the last quarter's changes fall on a
@@ -962,8 +964,6 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
             attempts.append((r, m, coupled, False))
             if m == alpha_u and not coupled:  # k-eps relaxation alone, with the coupled step
                 attempts.append((r, m, True, False))
-    if not retries:
-        attempts = attempts[:1]
     if ANDERSON_DEPTH > 0 and not laminar:
         attempts.insert(0, (relax, alpha_u, coupled, True))
     best = None
@@ -1019,6 +1019,8 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                 continue
             if best is None or ch / min(r, m) < best[0]:  # the relaxed change, scaled back
                 best = (ch / min(r, m), st, it, min(r, m), cp, last)
+            if not retries:
+                break  # stalled, not diverged: kept as it is (a divergence goes on to the retries)
         if retries and resume is not None and resume[1] < STATION_EXTENSION * resume[2]:
             # the last resort: the plain attempt iterates on from where its iterations ran out, up
             # to STATION_EXTENSION times its cap (unless it was extended that far already),

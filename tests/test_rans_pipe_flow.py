@@ -714,7 +714,8 @@ def test_a_march_warm_started_from_its_own_solution_stops_after_two_iterations(w
 
 def test_a_station_without_retries_keeps_its_first_attempt():
     """_march_station(retries=False) iterates a stalled station once, to its cap, and returns it
-    unconverged; with retries it goes on through the coupled step and the relaxations."""
+    unconverged; with retries it goes on through the coupled step and the relaxations. A
+    diverging attempt is retried either way."""
     from rans import solver as rs
 
     class Stalled:
@@ -740,3 +741,15 @@ def test_a_station_without_retries_keeps_its_first_attempt():
         counts[retries] = s.calls
     assert counts[False] == 20
     assert counts[True] > 3 * counts[False]
+
+    class DivergesOnce(Stalled):
+        def iterate(self, st, *args):
+            self.calls += 1
+            if self.calls == 1:
+                raise rs.SolverDivergence("epsilon = inf (test)")
+            return 0.0  # converged at once
+
+    s = DivergesOnce()
+    _, ok, *_ = rs._march_station(s, State(), None, None, None, None, True, 1.0, (2, 20), 1e-6, [],
+                                  retries=False)
+    assert ok and s.calls == 3  # a divergence is retried even without retries of stalls
