@@ -3,6 +3,7 @@
     python -m particles.bench [--parcels N] [--rounds R]
     python -m particles.bench --physics all|minimal [--parcels N]
     python -m particles.bench --switches [--parcels N]
+    python -m particles.bench --windows [--parcels N] [--rounds R]
 
 Default (``--physics both``): the kernel's parcel-steps per second per core with the full
 physics and with drag, gravity, Langevin and walls only (Saffman and Magnus lift, rotation and
@@ -11,6 +12,10 @@ inter-particle collisions off), one numba thread, R interleaved rounds of each, 
 studies' grid (``studies_grid_rate``: 400 × 20 × 40 cells of a developing 4 m pipe, where a
 step also crosses axial faces); then the full-physics pass once more on all threads, which
 must give the bit-identical result.
+
+``--windows``: the full physics on the studies' grid swept parcel after parcel and window by
+window (``TrackSettings.window_stations``), interleaved rounds, best of each, and whether the
+final parcel states agree bit for bit.
 
 ``--switches``: the same pass with everything on and with Magnus lift, particle rotation and
 inter-particle collisions switched off (a scene that does not need them runs a kernel that
@@ -140,6 +145,38 @@ def studies_grid_rate(parcels=8000, rounds=2):
     return best
 
 
+def compare_windows(parcels=6000, rounds=3, windows=(0, 4)):
+    """Full-physics passes on the studies' grid swept parcel after parcel (window 0) and window
+    by window (``TrackSettings.window_stations``), interleaved rounds, one thread: best seconds
+    and Sample per window, and whether the final parcel states agree bit for bit."""
+    from .tracking import TrackSettings
+
+    gas_props = GasProperties(1.205, 1.81e-5)
+    mesh = PipeMesh.build(0.0305, 4.0, radial_cells=20, azimuthal_cells=40, axial_cells=400)
+    gas = solve(mesh, gas_props, 10.0, 1.0, ke.inlet_epsilon(1.0, 0.0305))
+    spec = ParticleSpec(200e-6, 1020.0, 2.2, 10.0, 0.5, 1.5)
+    options = PhysicsOptions()
+    stats = track(mesh, gas, spec, options, parcels=min(parcels, 4000), seed=1,
+                  pass_index=0).cell_statistics(gas)
+    threads = numba.get_num_threads()
+    best = {w: (np.inf, None) for w in windows}
+    try:
+        numba.set_num_threads(1)
+        for _ in range(rounds):
+            for w in windows:
+                t0 = time.perf_counter()
+                s = track(mesh, gas, spec, options, parcels=parcels, seed=1, pass_index=1, stats=stats,
+                          settings=TrackSettings(window_stations=w), keep_states=True)
+                t = time.perf_counter() - t0
+                if t < best[w][0]:
+                    best[w] = (t, s)
+    finally:
+        numba.set_num_threads(threads)
+    first = best[windows[0]][1]
+    same = all(np.array_equal(first.states, best[w][1].states) for w in windows)
+    return best, same
+
+
 def compare_switches(parcels=20000, rounds=3, length=1.0):
     """Pass wall times with all physics on and with Magnus, rotation and collisions off."""
     gas_props = GasProperties(1.205, 1.81e-5)
@@ -174,7 +211,21 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds (--physics both)")
     ap.add_argument("--switches", action="store_true",
                     help="compare all-on with Magnus, rotation and collisions off")
+    ap.add_argument("--windows", action="store_true",
+                    help="studies' grid: parcel after parcel against window by window (4 stations)")
     args = ap.parse_args(argv)
+    if args.windows:
+        parcels = args.parcels if args.parcels != 20000 else 6000
+        best, same = compare_windows(parcels, args.rounds)
+        print(f"# particles.bench --windows  ({platform.machine()}, {os.cpu_count()} cores, numba "
+              f"{numba.__version__}, 1 thread, parcels={parcels}, best of {args.rounds} interleaved rounds, "
+              f"400 x 20 x 40 cells)")
+        for w, (t, s) in best.items():
+            label = "parcel after parcel" if w == 0 else f"windows of {w} stations"
+            print(f"{label:24s}: {s.counts['steps'] / t / 1e6:.2f} M parcel-steps/s per core ({t:.2f} s)")
+        print(f"final parcel states bit-identical: {'yes' if same else 'NO'}")
+        assert same, "the windowed sweep changed a trajectory"
+        return
     if args.switches:
         compile_s, best = compare_switches(args.parcels)
         print(f"# particles.bench --switches  ({platform.machine()}, {os.cpu_count()} cores, "
