@@ -115,6 +115,19 @@ def kernel_rates(parcels=20000, rounds=3, length=1.0):
     return best, compile_s, many
 
 
+def _studies_grid(parcels):
+    """The studies' grid (developing 4 m pipe, 400 x 20 x 40 cells, single-phase gas), the base
+    particles with the full physics, and collision statistics from a first pass."""
+    gas_props = GasProperties(1.205, 1.81e-5)
+    mesh = PipeMesh.build(0.0305, 4.0, radial_cells=20, azimuthal_cells=40, axial_cells=400)
+    gas = solve(mesh, gas_props, 10.0, 1.0, ke.inlet_epsilon(1.0, 0.0305))
+    spec = ParticleSpec(200e-6, 1020.0, 2.2, 10.0, 0.5, 1.5)
+    options = PhysicsOptions()
+    stats = track(mesh, gas, spec, options, parcels=min(parcels, 4000), seed=1,
+                  pass_index=0).cell_statistics(gas)
+    return mesh, gas, spec, options, stats
+
+
 def studies_grid_rate(parcels=8000, rounds=2):
     """Best 1-thread full-physics pass on the studies' grid: the developing 4 m pipe at 400 axial
     × 20 × 40 cells (320,000 cells, as cases/scenes), single-phase gas, the base particles.
@@ -123,13 +136,7 @@ def studies_grid_rate(parcels=8000, rounds=2):
     two stations) and reads from 69 MB of accumulators, so a step costs more than in the
     one-station section of ``kernel_rates``.  Returns (seconds, Sample).
     """
-    gas_props = GasProperties(1.205, 1.81e-5)
-    mesh = PipeMesh.build(0.0305, 4.0, radial_cells=20, azimuthal_cells=40, axial_cells=400)
-    gas = solve(mesh, gas_props, 10.0, 1.0, ke.inlet_epsilon(1.0, 0.0305))
-    spec = ParticleSpec(200e-6, 1020.0, 2.2, 10.0, 0.5, 1.5)
-    options = PhysicsOptions()
-    stats = track(mesh, gas, spec, options, parcels=min(parcels, 4000), seed=1,
-                  pass_index=0).cell_statistics(gas)
+    mesh, gas, spec, options, stats = _studies_grid(parcels)
     threads = numba.get_num_threads()
     best = (np.inf, None)
     try:
@@ -151,13 +158,7 @@ def compare_windows(parcels=6000, rounds=3, windows=(0, 4)):
     and Sample per window, and whether the final parcel states agree bit for bit."""
     from .tracking import TrackSettings
 
-    gas_props = GasProperties(1.205, 1.81e-5)
-    mesh = PipeMesh.build(0.0305, 4.0, radial_cells=20, azimuthal_cells=40, axial_cells=400)
-    gas = solve(mesh, gas_props, 10.0, 1.0, ke.inlet_epsilon(1.0, 0.0305))
-    spec = ParticleSpec(200e-6, 1020.0, 2.2, 10.0, 0.5, 1.5)
-    options = PhysicsOptions()
-    stats = track(mesh, gas, spec, options, parcels=min(parcels, 4000), seed=1,
-                  pass_index=0).cell_statistics(gas)
+    mesh, gas, spec, options, stats = _studies_grid(parcels)
     threads = numba.get_num_threads()
     best = {w: (np.inf, None) for w in windows}
     try:
