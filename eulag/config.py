@@ -598,9 +598,9 @@ class NumericsConfig(_Section):
     gas_station_retries : str
         ``"always"`` (default): every gas solve of a developing pipe retries a stalled station
         (``rans.solve``, the coupled cross-flow step, more relaxation, an extension of its
-        iterations); ``"near-convergence"``: only once the last pass's coupling residual is
-        within ``coupling_tolerance``, in the final passes and in the solve on the averaged
-        final sources; earlier solves keep a stalled station's first attempt (a diverging
+        iterations); ``"near-convergence"``: only where the coupling residual of the sources
+        being solved is within ``coupling_tolerance``, in the final passes and in the solve on
+        the averaged final sources; earlier solves keep a stalled station's first attempt (a diverging
         one is retried either way). On scene h's
         pass-3 sources the retries take two thirds of the solve's time and change nothing
         downstream of the stalled stations (docs/numerics.md, "Gas solver").

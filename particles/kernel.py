@@ -949,7 +949,8 @@ def make_tracker(options=PhysicsOptions()):
             return
         ray = np.arange(nt + 1) * (2.0 * math.pi / nt)
         rngs = np.zeros((4, RNG_STATE_SIZE), dtype=np.int64)
-        n_susp = count if prm[P_WINDOW] > 0.0 else 0  # suspended parcel states (one window: none)
+        windowed = 0.0 < prm[P_WINDOW] < x_edges.shape[0] - 1  # more than one window
+        n_susp = count if windowed else 0  # suspended parcel states
         susp = np.empty((n_susp, NSUSP))
         _TRACK_PARCELS(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                        x_centres, tab, axis, stats, prm, out, state, np.empty(NF), np.empty(NF),
