@@ -2,11 +2,13 @@
 
 The run layer (:mod:`eulag.runs`) calls :func:`validate_two_fluid_case` on the parsed TOML
 and :func:`run_two_fluid` to get the dataset.  The solver is :mod:`tfm.section` (fully
-developed pipe cross-section); the closures are in :mod:`tfm`.
+developed pipe cross-section) or, with ``numerics.mode = "developing"``, :mod:`tfm.developing`
+(the same section marched along the pipe from the paper's inlet); the closures are in :mod:`tfm`.
 
 Case tables and keys (SI; the one exception is ``friction.internal_friction_angle_deg``):
 
-    [pipe]       diameter, length (over which Δp = −dp/dx · length is reported)
+    [pipe]       diameter, length (fully developed: Δp = −dp/dx · length; developing: the
+                 marched length, Δp = ∫ −dp/dx dx)
     [gas]        density, viscosity, superficial_velocity
     [solids]     density, diameter, mass_flow
     [friction]   model ("dartevelle" | "srivastava-sundaresan" | "berzi" | "none"), alpha_min,
@@ -16,7 +18,9 @@ Case tables and keys (SI; the one exception is ``friction.internal_friction_angl
     [walls]      restitution, friction, tangential_restitution
     [drag]       mckeen_scale, blend_width
     [numerics]   radial_cells, azimuthal_cells, first_cell_yplus, max_iterations, tolerance,
-                 turbulence ("k-epsilon" | "mixing-length")
+                 turbulence ("k-epsilon" | "mixing-length"), mode ("fully-developed" |
+                 "developing"), first_step_diameters, step_growth, max_step_diameters
+                 (the marching stations of the developing mode, in pipe diameters)
     [experiment] optional reference values (supplementary_gas, pressure_drop, inlet_alpha_s, ...)
 """
 
@@ -62,6 +66,10 @@ def _text():
     return (lambda v: isinstance(v, str)), "a string"
 
 
+#: numerics.mode: one fully developed section (tfm.section) or the pipe marched from the paper's
+#: inlet (tfm.developing)
+MODES = ("fully-developed", "developing")
+
 #: section -> key -> (default or None if required, (check, allowed))
 SCHEMA = {
     "pipe": {"diameter": (None, _num(0, 1)), "length": (2.4, _num(0, 1e4))},
@@ -83,7 +91,10 @@ SCHEMA = {
                  "azimuthal_cells": (32, _num(4, 800, integer=True, lo_open=False, even=True)),
                  "first_cell_yplus": (30.0, _num(0, 1000)), "max_iterations": (400, _num(0, 1e6, integer=True)),
                  "tolerance": (1e-4, _num(0, 1)),
-                 "turbulence": ("k-epsilon", _choice(("k-epsilon", "mixing-length")))},
+                 "turbulence": ("k-epsilon", _choice(("k-epsilon", "mixing-length"))),
+                 "mode": ("fully-developed", _choice(MODES)),
+                 "first_step_diameters": (0.25, _num(0, 1000)), "step_growth": (1.08, _num(1, 2, lo_open=False)),
+                 "max_step_diameters": (2.5, _num(0, 1000))},
 }
 _TOP = ("name", "description", "model")
 
@@ -132,6 +143,11 @@ def validate_two_fluid_case(case: dict) -> None:
     amin, amax = fr.get("alpha_min", 0.4), fr.get("alpha_max", 0.63)
     if not amin < amax:
         raise ValueError(f"friction.alpha_min = {amin!r}: allowed a number < friction.alpha_max ({amax!r})")
+    num = case.get("numerics", {})
+    first, most = num.get("first_step_diameters", 0.25), num.get("max_step_diameters", 2.5)
+    if most < first:
+        raise ValueError(f"numerics.max_step_diameters = {most!r}: allowed a number >= "
+                         f"numerics.first_step_diameters ({first!r})")
     if "experiment" in case and not isinstance(case["experiment"], dict):
         raise ValueError(f"experiment = {_fmt(case['experiment'])}: allowed a table")
 
@@ -169,7 +185,34 @@ def _flat_attrs(c: dict) -> dict:
     return out
 
 
-def _dataset(case, solver, st, closures, converged, stop_reason, elapsed):
+#: the per-cell fields of a two-fluid dataset: name -> (state or closure key, units, long_name)
+_FIELDS = {
+    "gas_ux": ("ug", "m s-1", "axial gas velocity"),
+    "solids_ux": ("us", "m s-1", "axial solids velocity"),
+    "solids_fraction": ("alpha", "1", "solids volume fraction alpha_s"),
+    "granular_temperature": ("theta", "m2 s-2", "granular temperature Theta"),
+    "frictional_pressure": ("pf", "Pa", "solids frictional pressure p_f"),
+    "frictional_viscosity": ("muf", "Pa s", "solids frictional viscosity mu_f (capped)"),
+    "drag_coefficient": ("beta", "kg m-3 s-1", "gas-solid drag coefficient beta"),
+    "gas_turbulent_viscosity": ("nut", "m2 s-1", "gas turbulent kinematic viscosity"),
+    "solids_pressure_kinetic": ("pkin", "Pa", "kinetic-collisional solids pressure (Lun)"),
+    "gas_k": ("k", "m2 s-2", "gas turbulent kinetic energy"),
+    "gas_epsilon": ("eps", "m2 s-3", "gas turbulent dissipation rate"),
+}
+
+
+def _station_fields(st, closures) -> dict:
+    """The per-cell fields of one solved section (state ``st`` and its ``closures``)."""
+    src = {"ug": st.ug, "us": st.us, "alpha": st.alpha, "theta": st.theta, "k": st.k, "eps": st.eps,
+           **{k: closures[k] for k in ("pf", "muf", "beta", "nut", "pkin")}}
+    return {name: np.asarray(src[key], float).copy() for name, (key, _, _) in _FIELDS.items()
+            if src[key] is not None}
+
+
+def _dataset(case, solver, st, closures, converged, stop_reason, elapsed, march=None):
+    """The dataset of a solved case.  ``march``: None for a fully developed section (one station
+    at x = 0), else ``(rows, fields)`` of a developing run: per-station scalars (``x``, ``G``, …)
+    and per-station cell fields (lists over the stations, as :func:`_station_fields`)."""
     import xarray as xr
 
     import eulag
@@ -179,35 +222,50 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed):
     mesh = solver.mesh
     nr, nt = mesh.nr, mesh.nt
     L = c["pipe"]["length"]
+    if march is None:
+        xs, G, stations = np.array([0.0]), np.array([st.G]), [_station_fields(st, closures)]
+        dp, dp_name = st.G * L, "-dp/dx times pipe.length"
+    else:
+        rows, stations = march
+        xs, G = np.array([r["x"] for r in rows]), np.array([r["G"] for r in rows])
+        dp, dp_name = float(np.sum(G * np.diff(np.concatenate([[0.0], xs])))), "integral of -dp/dx over the pipe"
+    nx = len(xs)
 
-    def field(v, units, long_name):
-        return xr.Variable(("x", "r", "theta"), np.asarray(v, float).reshape(1, nr, nt), {"units": units,
-                                                                                          "long_name": long_name})
+    def field(name):
+        _, units, long_name = _FIELDS[name]
+        v = np.stack([s[name] for s in stations]).reshape(nx, nr, nt)
+        return xr.Variable(("x", "r", "theta"), v, {"units": units, "long_name": long_name})
 
-    pf, muf = closures["pf"], closures["muf"]
+    alpha_end = stations[-1]["solids_fraction"]
     hist = np.asarray(st.history, dtype=float).reshape(-1, 4)
-    data = {
-        "gas_ux": field(st.ug, "m s-1", "axial gas velocity"),
-        "solids_ux": field(st.us, "m s-1", "axial solids velocity"),
-        "solids_fraction": field(st.alpha, "1", "solids volume fraction alpha_s"),
-        "granular_temperature": field(st.theta, "m2 s-2", "granular temperature Theta"),
-        "frictional_pressure": field(pf, "Pa", "solids frictional pressure p_f"),
-        "frictional_viscosity": field(muf, "Pa s", "solids frictional viscosity mu_f (capped)"),
-        "drag_coefficient": field(closures["beta"], "kg m-3 s-1", "gas-solid drag coefficient beta"),
-        "gas_turbulent_viscosity": field(closures["nut"], "m2 s-1", "gas turbulent kinematic viscosity"),
-        "solids_pressure_kinetic": field(closures["pkin"], "Pa", "kinetic-collisional solids pressure (Lun)"),
-        "pressure_gradient": xr.Variable(("x",), [st.G], {"units": "Pa m-1", "long_name": "section-mean -dp/dx"}),
-        "pressure_drop": xr.Variable((), st.G * L, {"units": "Pa", "long_name": "-dp/dx times pipe.length"}),
+    data = {name: field(name) for name in _FIELDS if name in stations[0]}
+    data.update({
+        "pressure_gradient": xr.Variable(("x",), G, {"units": "Pa m-1", "long_name": "section-mean -dp/dx"}),
+        "pressure_drop": xr.Variable((), dp, {"units": "Pa", "long_name": dp_name}),
         "capped_cells": xr.Variable((), np.int64(solver.capped), {"units": "1",
                                     "long_name": "cells whose frictional viscosity was capped at friction.viscosity_cap"}),
-        "solids_holdup": xr.Variable((), float(np.sum(st.alpha * solver.A) / solver.Atot),
+        "solids_holdup": xr.Variable((), float(np.sum(alpha_end * solver.A) / solver.Atot),
                                      {"units": "1", "long_name": "section-mean solids volume fraction"}),
-        "solids_mass_flow": xr.Variable((), float(np.sum(st.alpha * c["solids"]["density"] * st.us * solver.A)),
+        "solids_mass_flow": xr.Variable((), float(np.sum(alpha_end * c["solids"]["density"]
+                                                        * stations[-1]["solids_ux"] * solver.A)),
                                         {"units": "kg s-1", "long_name": "solids mass flow of the solution"}),
         "residual": xr.Variable(("iteration",), hist[:, 1], {"units": "1", "long_name": "outer-iteration change"}),
-    }
+    })
+    if march is not None:
+        rows = march[0]
+        data["pressure"] = xr.Variable(("x",), -np.cumsum(G * np.diff(np.concatenate([[0.0], xs]))), {
+            "units": "Pa", "long_name": "section-mean pressure relative to the inlet"})
+        data["solids_holdup_x"] = xr.Variable(("x",), [r["holdup"] for r in rows], {
+            "units": "1", "long_name": "section-mean solids volume fraction at each station"})
+        data["solids_mass_flow_x"] = xr.Variable(("x",), [r["ms"] for r in rows], {
+            "units": "kg s-1", "long_name": "solids mass flow at each station"})
+        data["station_iterations"] = xr.Variable(("x",), np.array([r["it"] for r in rows], np.int64), {
+            "units": "1", "long_name": "outer iterations of each station"})
+        data["station_converged"] = xr.Variable(("x",), np.array([r["ok"] for r in rows], np.int8), {
+            "units": "1", "long_name": "1 where the station's iterations converged"})
     coords = {
-        "x": xr.Variable(("x",), [0.0], {"units": "m", "long_name": "axial position (fully developed)"}),
+        "x": xr.Variable(("x",), xs, {"units": "m", "long_name": "axial position (fully developed)" if march is None
+                                      else "axial position of the station from the inlet"}),
         "r": xr.Variable(("r",), mesh.r, {"units": "m", "long_name": "ring centre radius"}),
         "theta": xr.Variable(("theta",), mesh.theta, {"units": "rad", "long_name": "sector mid-angle (pi/2 = top)"}),
         "iteration": xr.Variable(("iteration",), hist[:, 0].astype(np.int64), {"units": "1", "long_name": "outer iteration"}),
@@ -219,12 +277,10 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed):
     if isinstance(dp_meas, (int, float)) and dp_meas > 0:
         data["pressure_drop_measured"] = xr.Variable((), float(dp_meas), {
             "units": "Pa", "long_name": "measured pressure drop over the pipe (experiment.pressure_drop)"})
-        data["pressure_drop_relative_error"] = xr.Variable((), st.G * L / dp_meas - 1.0, {
+        data["pressure_drop_relative_error"] = xr.Variable((), dp / dp_meas - 1.0, {
             "units": "1", "long_name": "(computed - measured) / measured pressure drop"})
-    if st.k is not None:
-        data["gas_k"] = field(st.k, "m2 s-2", "gas turbulent kinetic energy")
-        data["gas_epsilon"] = field(st.eps, "m2 s-3", "gas turbulent dissipation rate")
-    attrs = {"Conventions": CONVENTIONS, "title": f"two-fluid fully developed section: {c.get('name', '')}",
+    title = "fully developed section" if march is None else "developing pipe"
+    attrs = {"Conventions": CONVENTIONS, "title": f"two-fluid {title}: {c.get('name', '')}",
              "model": "two-fluid", "eulag_version": getattr(eulag, "__version__", "unknown"),
              "converged": "true" if converged else "false", "stop_reason": stop_reason,
              "iterations": int(st.iteration), "time_total": float(elapsed)}
@@ -289,9 +345,11 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
             if old.attrs.get("case_json") == key and old.attrs.get("converged") == "true":
                 return old.load()
     pb = problem_from_case(case)
+    ck = checkpoint_path(out) if out is not None else None
+    if c["numerics"]["mode"] == "developing":
+        return _run_developing(case, c, pb, key, out, ck, resume, progress)
     solver = _Solver(pb)
     state = None
-    ck = checkpoint_path(out) if out is not None else None
     if resume and ck is not None and ck.is_file():
         with np.load(ck) as d:
             if str(d["case_json"]) == key:
@@ -322,4 +380,71 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
             ck.unlink()
         elif not ok:
             np.savez(ck, case_json=np.array(key), **st.as_arrays())
+    return ds
+
+
+#: a developing run writes its checkpoint every this many stations
+CHECKPOINT_STATIONS = 10
+
+
+def _run_developing(case, c, pb, key, out, ck, resume, progress):
+    """``numerics.mode = "developing"``: march the pipe (:func:`tfm.developing.march_pipe`) from the
+    paper's inlet over ``pipe.length``; checkpoint every :data:`CHECKPOINT_STATIONS` stations
+    (the stations done, their fields and the last state) and at a failure."""
+    from eulag.output import write_dataset
+    from tfm.developing import march_pipe
+    from tfm.section import SectionDivergence, SectionState, _Solver
+
+    D, n = c["pipe"]["diameter"], c["numerics"]
+    rows, fields, start = [], [], None
+    if resume and ck is not None and ck.is_file():
+        with np.load(ck) as d:
+            if str(d["case_json"]) == key and "station_x" in d:
+                cols = ("x", "G", "holdup", "ms", "peak", "it", "ok")
+                rows = [{k: d[f"station_{k}"][i].item() for k in cols} for i in range(len(d["station_x"]))]
+                names = [str(v) for v in d["field_names"]]
+                fields = [{nm: d[f"field_{nm}"][i] for nm in names} for i in range(len(rows))]
+                start = (list(rows), SectionState.from_arrays(d))
+
+    def save(st):
+        cols = {f"station_{k}": np.array([r[k] for r in rows]) for k in rows[0]}
+        names = list(fields[0])
+        arrays = {f"field_{nm}": np.stack([f[nm] for f in fields]) for nm in names}
+        np.savez(ck, case_json=np.array(key), field_names=np.array(names), **cols, **arrays, **st.as_arrays())
+
+    done = []   # the last completed station's state (for the checkpoint of a failure)
+
+    def station(i, x, st, row):
+        done[:] = [SectionState.from_arrays(st.as_arrays())]
+        rows.append(row)
+        fields.append(_station_fields(st, solver.closures(st)))
+        if ck is not None and len(rows) % CHECKPOINT_STATIONS == 0:
+            save(st)
+        if progress and len(rows) % CHECKPOINT_STATIONS == 0:
+            print(f"two-fluid {c.get('name', '')}: station {len(rows)}, x = {x:.3f} m, -dp/dx {st.G:.1f} Pa/m, "
+                  f"{row['it']} iterations", flush=True)
+
+    t0 = time.perf_counter()
+    solver = _Solver(pb)
+    try:
+        res = march_pipe(pb, c["pipe"]["length"], first_step=n["first_step_diameters"] * D, growth=n["step_growth"],
+                         max_step=n["max_step_diameters"] * D, callback=station, start=start, solver=solver)
+    except SectionDivergence as exc:
+        if ck is not None and done:
+            save(done[-1])
+        raise RuntimeError(f"two-fluid {c.get('name', '')}: {exc}") from None
+    ok = bool(res.converged.all())
+    bad = [i + 1 for i, r in enumerate(rows) if not r["ok"]]
+    reason = ("converged" if ok else f"not converged: {len(bad)} of {len(rows)} stations reached "
+              f"numerics.max_iterations = {pb.max_iterations} (first: station {bad[0]}, x = {rows[bad[0] - 1]['x']:.4g} m)")
+    res.solver.capped = int(res.closures["ncap"])
+    ds = _dataset(case, res.solver, res.state, res.closures, ok, reason, time.perf_counter() - t0,
+                  march=(rows, fields))
+    ds.attrs["case_json"] = key
+    for k, v in res.inlet.items():
+        ds.attrs[f"inlet_{k}"] = v
+    if out is not None:
+        write_dataset(ds, out)
+        if ck.is_file():
+            ck.unlink()
     return ds

@@ -141,6 +141,11 @@ class _Solver:
         # constant structural pieces
         self.cf = sec.S / sec.delta
         self.face_up_is_N = sec.ny > 0.0   # weight flux comes from the upper cell
+        #: axial convection of a marching station (:mod:`tfm.developing`); None: fully developed.
+        #: Keys: ``cg``, ``cs`` (ρ_g α_g u_g and ρ_s α_s u_s of the upstream station over Δx
+        #: [kg m-3 s-1]), ``ug``, ``us``, ``k``, ``eps``, ``theta`` (upstream values), ``qs``
+        #: (α_s u_s upstream over Δx [s-1]), ``dx`` [m].
+        self.conv = None
 
     # ------------------------------------------------------------ helpers
     def check(self, name, v, it, lo=None):
@@ -221,12 +226,24 @@ class _Solver:
         dg[w] += hg * sec.wall_arc
         ds[w] += hs * sec.wall_arc
         B = sp.diags(c["beta"] * A)
-        M = sp.bmat([[Lg + sp.diags(dg) + B, -B], [-B, Ls + sp.diags(ds) + B]], format="csc")
         rhs = np.concatenate([ag * A, a * A])
-        u1 = spla.spsolve(M, rhs)
-        qg1 = float(np.sum(ag * u1[:n] * A))
-        G = pb.u_g * self.Atot / qg1
-        u = G * u1
+        cv = self.conv
+        if cv is None:
+            M = sp.bmat([[Lg + sp.diags(dg) + B, -B], [-B, Ls + sp.diags(ds) + B]], format="csc")
+            u1 = spla.spsolve(M, rhs)
+            qg1 = float(np.sum(ag * u1[:n] * A))
+            G = pb.u_g * self.Atot / qg1
+            u = G * u1
+        else:
+            # marching station: ρ α u_up (u − u_up)/Δx on the left; u = u_b + G u_1, G from the gas flow
+            cg, cs = cv["cg"] * A, cv["cs"] * A
+            M = sp.bmat([[Lg + sp.diags(dg + cg) + B, -B], [-B, Ls + sp.diags(ds + cs) + B]], format="csc")
+            lu = spla.splu(M)
+            u1 = lu.solve(rhs)
+            ub = lu.solve(np.concatenate([cg * cv["ug"], cs * cv["us"]]))
+            qg1 = float(np.sum(ag * u1[:n] * A))
+            G = (pb.u_g * self.Atot - float(np.sum(ag * ub[:n] * A))) / qg1
+            u = ub + G * u1
         self.tau_sw = tau
         self.hg, self.hs = hg, hs
         return u[:n], u[n:], G
@@ -252,12 +269,20 @@ class _Solver:
         gk = ag * (pb.mu_g + mut / ke.SIGMA_K)
         Lk = self.laplacian(_harmonic(gk[sec.P], gk[sec.N]))
         dk = (ag * pb.rho_g * eps / k + sink_p) * A
-        k_new = spla.spsolve((Lk + sp.diags(dk)).tocsc(), ag * prod * A)
+        rk = ag * prod * A
+        cv = self.conv
+        if cv is not None:
+            dk = dk + cv["cg"] * A
+            rk = rk + cv["cg"] * A * cv["k"]
+        k_new = spla.spsolve((Lk + sp.diags(dk)).tocsc(), rk)
         k_new = np.maximum(k_new, 1e-10)
         ge = ag * (pb.mu_g + mut / ke.SIGMA_EPS)
         Le = self.laplacian(_harmonic(ge[sec.P], ge[sec.N]))
         de = (ke.C_EPS2 * ag * pb.rho_g * eps / k + pb.c_eps3 * sink_p) * A
         rhs = ke.C_EPS1 * ag * eps / k * prod * A
+        if cv is not None:
+            de = de + cv["cg"] * A
+            rhs = rhs + cv["cg"] * A * cv["eps"]
         # ε fixed in the wall cells (wall function): a dominant diagonal
         big = 1e12 * (np.max(de) + np.max(np.abs(Le.diagonal())))
         de = de.copy()
@@ -287,6 +312,9 @@ class _Solver:
         src[w] += np.where(neg, 0.0, src_w)
         dd = diag.copy()
         dd[w] += d_w
+        if self.conv is not None:   # (3/2) ρ_s α_s u_s ∂Θ/∂x
+            dd += 1.5 * self.conv["cs"] * A
+            src = src + 1.5 * self.conv["cs"] * A * self.conv["theta"]
         theta = spla.spsolve((L + sp.diags(dd)).tocsc(), src)
         return np.maximum(theta, pb.theta_floor)
 
@@ -325,6 +353,10 @@ class _Solver:
         S, d = sec.S, sec.delta
         alpha = st.alpha.copy()
         total = float(np.sum(alpha * A))
+        cv = self.conv
+        # marching station: the axial solids flux (α_s u_s − (α_s u_s)_up)/Δx joins the balance
+        ax_d = np.zeros(n) if cv is None else np.maximum(st.us, 0.0) * A / cv["dx"]
+        ax_b = np.zeros(n) if cv is None else cv["qs"] * A
         for _ in range(steps):
             a_old = alpha.copy()
             x = a_old.copy()
@@ -336,7 +368,7 @@ class _Solver:
                 # face flux P->N per unit length
                 F = S * (K * (-(p[sec.N] - p[sec.P]) / d - np.clip(x[up], 0.0, None) * self.drho * G_ACC * wsign)
                          - Dt_f * (x[sec.N] - x[sec.P]) / d)
-                R = (x - a_old) * A / st.dt + np.bincount(sec.P, F, n) - np.bincount(sec.N, F, n)
+                R = (x - a_old) * A / st.dt + ax_d * x - ax_b + np.bincount(sec.P, F, n) - np.bincount(sec.N, F, n)
                 dF_dP = S * (K * dp[sec.P] / d + Dt_f / d)
                 dF_dN = S * (-K * dp[sec.N] / d - Dt_f / d)
                 wgt = -S * K * self.drho * G_ACC * wsign * (x[up] > 0.0)
@@ -344,7 +376,7 @@ class _Solver:
                 dF_dN = dF_dN + np.where(up == sec.N, wgt, 0.0)
                 rows = np.concatenate([np.arange(n), sec.P, sec.P, sec.N, sec.N])
                 cols = np.concatenate([np.arange(n), sec.P, sec.N, sec.P, sec.N])
-                vals = np.concatenate([A / st.dt, dF_dP, dF_dN, -dF_dP, -dF_dN])
+                vals = np.concatenate([A / st.dt + ax_d, dF_dP, dF_dN, -dF_dP, -dF_dN])
                 J = sp.coo_matrix((vals, (rows, cols)), shape=(n, n)).tocsc()
                 dx = spla.spsolve(J, -R)
                 x = x + dx
@@ -355,7 +387,8 @@ class _Solver:
                     break
             if ok and x.min() > -1e-6 and x.max() < P.alpha_max + 0.05:
                 alpha = np.clip(x, 0.0, None)
-                alpha *= total / float(np.sum(alpha * A))
+                if cv is None:
+                    alpha *= total / float(np.sum(alpha * A))
                 st.dt = min(st.dt * 1.5, 1e3)
             else:
                 st.dt *= 0.3
@@ -393,7 +426,7 @@ class _Solver:
             self.check("solids_ux", us, st.iteration)
             du = float(np.max(np.abs(us - st.us)) / pb.u_g)
             st.ug, st.us = 0.7 * ug + 0.3 * st.ug, 0.7 * us + 0.3 * st.us
-            dG = abs(G - st.G) / G
+            dG = abs(G - st.G) / max(abs(G), 1e-12)
             st.G = 0.7 * G + 0.3 * st.G
             dk = 0.0
             if pb.turbulence == "k-epsilon":
@@ -417,8 +450,10 @@ class _Solver:
             # solids mass flow -> inventory
             ms = float(np.sum(alpha * pb.rho_s * st.us * self.A))
             ratio = pb.m_s / max(ms, 1e-12)
-            fac = ratio ** 0.5
-            alpha = alpha * fac
+            if self.conv is None:
+                alpha = alpha * ratio ** 0.5
+            else:       # a marching station: the solids flow is carried by the axial flux balance
+                ratio = 1.0
             # the inventory update never packs a cell beyond α_max − 0.02 (without friction, "none",
             # the deposit reaches that bound and the solids flow stays short of M_s: reported unconverged)
             over = alpha > pb.params.alpha_max - 0.02
