@@ -58,7 +58,11 @@ def test_quick_runs_end_to_end_and_writes_the_table(tmp_path, capsys):
             target = out / ln[ln.index("(") + 1: ln.rindex(")")]
             assert target.is_file() and target.stat().st_size > 1000, target
     assert (out / "fig7_frictional_pressure_closures.png").is_file()
-    assert len(list(out.glob("*.record.json"))) == 9
+    assert len(list(out.glob("*.record.json"))) == 10
+    dev = rows(out / "ding-friction-developing.csv")      # Berzi at Q_s = 0.8, marched from the inlet
+    assert [(d["model"], d["Q_s"]) for d in dev] == [("berzi", "0.8")] and dev[0]["converged"] == "yes"
+    assert float(dev[0]["us_in"]) == pytest.approx(6.088, abs=1e-3)        # Hinkle, eq. 22
+    assert "## The developing pipe" in readme and (out / "fig_developing_qs0.8.png").is_file()
 
     # --resume runs nothing again; --report without the datasets reports from the records
     for nc in out.glob("*.nc"):
@@ -99,7 +103,7 @@ def test_a_failing_run_is_one_line_and_the_study_goes_on(tmp_path, monkeypatch, 
     out = tmp_path / "ding"
     assert study("--quick", "--quiet", "--only", "berzi", "-o", out) == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "1 of 3 runs did not finish" in err[0]
+    assert len(err) == 1 and "1 of 4 runs did not finish" in err[0]
     grid = rows(out / "ding-friction-grid.csv")
     failed = [g for g in grid if g["mesh"] == "6x12"]
     assert failed[0]["converged"].startswith("failed: two-fluid x: alpha_s = nan in cell 3")

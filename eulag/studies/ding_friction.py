@@ -16,6 +16,9 @@ friction model changed in the case data) with the fully developed cross-section 
 * the sensitivity of Δp to the inputs the paper does not give (full mode: Berzi, Q_s = 0.8);
 * the force balance of the section (G A = gas wall force + solids wall force, the latter
   split into the collisional and the frictional term of the wall condition, eq. 24);
+* the developing pipe (``numerics.mode = "developing"``, :mod:`tfm.developing`): every rate and
+  model marched over the 2.4 m from the paper's inlet (eqs. 20–23), beside the developed section
+  (quick mode: Berzi at Q_s = 0.8 only);
 * figures after Fig. 3 (Δp against Q_s and U_g), Figs. 5-6 (α_s sections and vertical
   profiles), Fig. 7 (p_f(α_s) of the three models and Johnson-Jackson, from the closures),
   Figs. 8-9 (p_f and τ_f = μ_f |∇u_s| along the vertical diameter) and Fig. 10 (u_g, u_s, k_g,
@@ -114,13 +117,15 @@ def _grid_text(grid) -> str:
     return f"{grid[0]}x{grid[1]}"
 
 
-def study_cases(quick: bool, models=MODELS, rates=None, sensitivity: bool | None = None):
-    """The study's runs: a dict name -> (kind, info, ModelCase), kind "matrix" | "grid" | "sensitivity".
+def study_cases(quick: bool, models=MODELS, rates=None, sensitivity: bool | None = None, developing: bool = True):
+    """The study's runs: a dict name -> (kind, info, ModelCase), kind "matrix" | "grid" |
+    "sensitivity" | "developing".
 
     matrix: every rate x model on the matrix mesh; grid: Q_s = 0.8, each model, three meshes (the
     matrix run where the mesh is the same); ``rates`` None: Q_s = 0.8 in quick mode, all five
     otherwise; sensitivity (full mode): Berzi at Q_s = 0.8 with one
-    input changed at a time.
+    input changed at a time; developing: the matrix runs marched from the paper's inlet (quick
+    mode: Berzi at Q_s = 0.8).
     """
     grid, grids = (QUICK_GRID, QUICK_GRIDS) if quick else (GRID, GRIDS)
     rates = tuple(rates) if rates else (("0.8",) if quick else RATES)
@@ -146,6 +151,14 @@ def study_cases(quick: bool, models=MODELS, rates=None, sensitivity: bool | None
                 out[name] = ("sensitivity", {"rate": "0.8", "model": "berzi", "grid": grid, "label": label,
                                              "section": sec, "key": key, "value": v, "scale": scale},
                              _variant(bases["0.8"], name, model="berzi", grid=grid, changes=[(sec, key, v)]))
+    if developing:
+        for r in rates:
+            for m in models:
+                if quick and (m != "berzi" or r != "0.8"):
+                    continue
+                name = f"ding_qs{r}__{m}__{_grid_text(grid)}__developing"
+                out[name] = ("developing", {"rate": r, "model": m, "grid": grid},
+                             _variant(bases[r], name, model=m, grid=grid, changes=[("numerics", "mode", "developing")]))
     return out
 
 
@@ -201,19 +214,26 @@ def extract_metrics(ds, case) -> dict:
     from tfm.wall import schneiderbauer_wall_shear
 
     d = case.data
-    alpha = np.asarray(ds["solids_fraction"].values, float)[0]
+    # the section at the end of the pipe (a developed run has one station)
+    alpha = np.asarray(ds["solids_fraction"].values, float)[-1]
     area = np.asarray(ds["cell_area"].values, float)
     amin = float(d.get("friction", {}).get("alpha_min", 0.4))
     dp = float(ds["pressure_drop"].values)
-    m = {"dp": dp, "dpdx": float(ds["pressure_gradient"].values[0]),
+    developing = ds.sizes["x"] > 1
+    m = {"dp": dp, "dpdx": float(ds["pressure_gradient"].values[-1]),
          "peak_alpha": float(alpha.max()), "deposit_area": float(area[alpha > amin].sum() / area.sum()),
          "holdup": float(ds["solids_holdup"].values), "capped": int(ds["capped_cells"].values),
          "mass_flow_solution": float(ds["solids_mass_flow"].values)}
     r, theta = np.asarray(ds["r"].values), np.asarray(ds["theta"].values)
     R = 0.5 * float(d["pipe"]["diameter"])
-    fields = {k: np.asarray(ds[k].values, float)[0] for k in PROFILE_FIELDS if k in ds}
-    # force balance and τ_f from the solver's closures at this state
+    fields = {k: np.asarray(ds[k].values, float)[-1] for k in PROFILE_FIELDS if k in ds}
+    if developing:
+        m.update(_development_metrics(ds, d))
+    # force balance and τ_f from the solver's closures at this state (a fully developed section)
     try:
+        if developing:
+            raise _NotDeveloped
+
         s, st, c = _reconstruct(ds, case)
         w, arc = s.sec.wall, s.sec.wall_arc
         gas_wall = float(np.sum(s.hg * st.ug[w] * arc))
@@ -229,6 +249,8 @@ def extract_metrics(ds, case) -> dict:
                  collisional_wall_over_weight=coll / weight, frictional_wall_over_weight=fric / weight)
         nr, nt = len(r), len(theta)
         fields["frictional_shear"] = (c["muf"] * np.sqrt(c["gus2"])).reshape(nr, nt)
+    except _NotDeveloped:
+        pass
     except Exception as exc:  # noqa: BLE001 - the force balance is a diagnostic; keep the row
         m["force_balance_error"] = f"{type(exc).__name__}: {exc}"
     prof = {}
@@ -239,6 +261,34 @@ def extract_metrics(ds, case) -> dict:
     m["section"] = {"z": _short(np.asarray(ds["z"].values, float).reshape(-1) / R),
                     "y": _short(np.asarray(ds["y"].values, float).reshape(-1) / R), "alpha": _short(alpha.reshape(-1))}
     return m
+
+
+class _NotDeveloped(Exception):
+    """The section force balance applies to a fully developed section only."""
+
+
+def _development_metrics(ds, d) -> dict:
+    """What a developing run adds: Δp over the second half of the pipe (developed in the paper from
+    L = 120 D on) and over the first 0.3 m, −dp/dx at the end, the mean solids velocity at the inlet
+    (Hinkle) and at the end, the momentum flux that accelerating the solids costs, M_s Δu_s / A, and
+    Δp(x), holdup(x) for the figure."""
+    x = np.asarray(ds["x"].values, float)
+    p = -np.asarray(ds["pressure"].values, float)          # Δp from the inlet
+    L = float(x[-1])
+    rho_s, ms, D = float(d["solids"]["density"]), float(d["solids"]["mass_flow"]), float(d["pipe"]["diameter"])
+    area = math.pi * D**2 / 4
+    hold = np.asarray(ds["solids_holdup_x"].values, float)
+    us_end = ms / (rho_s * area * hold[-1])
+    us_in = float(ds.attrs.get("inlet_solids_velocity", math.nan))
+
+    def dp_to(xx):
+        return float(np.interp(xx, np.concatenate([[0.0], x]), np.concatenate([[0.0], p])))
+
+    return {"dp_second_half": dp_to(L) - dp_to(0.5 * L), "dp_first_03m": dp_to(min(0.3, L)),
+            "inlet_solids_velocity": us_in, "end_solids_velocity": us_end,
+            "acceleration_kPa": ms * (us_end - us_in) / area / 1e3,
+            "inlet_alpha": float(ds.attrs.get("inlet_alpha_s", math.nan)),
+            "stations": int(len(x)), "x": _short(x), "dp_x": _short(p), "holdup_x": _short(hold)}
 
 
 def _short(v: np.ndarray) -> np.ndarray:
@@ -271,8 +321,9 @@ def study_ding_friction(args, outdir: Path, t_start: float) -> int:
     rows = [_row(info, case, records[name]) for name, (kind, info, case) in plan.items() if kind == "matrix"]
     grid_rows = _grid_rows(plan, records)
     sens_rows = _sensitivity_rows(plan, records)
+    dev_rows = _developing_rows(plan, records)
     figures = _figures(outdir, plan, records, quick)
-    _write_readme(outdir, args, rows, grid_rows, sens_rows, plan, records, figures, t_start)
+    _write_readme(outdir, args, rows, grid_rows, sens_rows, plan, records, figures, t_start, dev_rows)
     return _finish(args, outdir, list(records.values()), allowed_failures=False)
 
 
@@ -354,6 +405,44 @@ def _sensitivity_rows(plan, records) -> list[dict]:
                      "peak_alpha": records[n].metrics.get("peak_alpha"),
                      "converged": _status(records[n])})
     return rows
+
+
+def _developing_rows(plan, records) -> list[dict]:
+    mx = _matrix(plan, records)
+    rows = []
+    for n, (k, info, c) in plan.items():
+        if k != "developing":
+            continue
+        m = records[n].metrics
+        dp = m.get("dp")
+        dev = mx.get((info["rate"], info["model"]), {})
+        full = dev.get("dp")
+        rows.append({"Q_s": float(info["rate"]), "model": info["model"],
+                     "dp_kPa": dp / 1e3 if dp is not None else None,
+                     "dp_error": (dp / 1e3 / PAPER_DP_MEASURED - 1) * 100 if (dp is not None and info["rate"] == "0.8")
+                     else None,
+                     "dp_full_kPa": full / 1e3 if full is not None else None,
+                     "first": m["dp_first_03m"] / 1e3 if "dp_first_03m" in m else None,
+                     "second_half": 2 * m["dp_second_half"] / 1e3 if "dp_second_half" in m else None,
+                     "end_ratio": m["dpdx"] / dev["dpdx"] if ("dpdx" in m and dev.get("dpdx")) else None,
+                     "alpha_in": m.get("inlet_alpha"), "us_in": m.get("inlet_solids_velocity"),
+                     "us_end": m.get("end_solids_velocity"), "accel": m.get("acceleration_kPa"),
+                     "converged": _status(records[n]), "time_s": records[n].time})
+    return rows
+
+
+DEV_COLUMNS = [Column("Q_s", "Q_s [m³/h]", "{:.1f}"), Column("model", "friction model"),
+               Column("dp_kPa", "Δp developing, 0-2.4 m [kPa]", "{:.2f}"),
+               Column("dp_error", "vs measured 4.26 kPa [%]", "{:+.0f}"),
+               Column("dp_full_kPa", "Δp fully developed section [kPa]", "{:.2f}"),
+               Column("first", "Δp over the first 0.3 m [kPa]", "{:.2f}"),
+               Column("second_half", "2 × Δp over 1.2-2.4 m [kPa]", "{:.2f}"),
+               Column("end_ratio", "−dp/dx at 2.4 m / developed", "{:.3f}"),
+               Column("alpha_in", "inlet α_s (eq. 23)", "{:.3f}"),
+               Column("us_in", "inlet u_s (Hinkle) [m/s]", "{:.2f}"),
+               Column("us_end", "mean u_s at 2.4 m [m/s]", "{:.2f}"),
+               Column("accel", "M_s Δu_s / A [kPa]", "{:.2f}"),
+               Column("converged", "converged"), Column("time_s", "run time [s]", "{:.1f}")]
 
 
 SENS_COLUMNS = [Column("input", "input"), Column("value", "value"), Column("note", "the case's value"),
@@ -438,7 +527,38 @@ COLORS = {"dartevelle": "tab:red", "srivastava-sundaresan": "tab:green", "berzi"
 
 def _figures(outdir: Path, plan, records, quick: bool) -> list[Path]:
     return draw_figures((_fig_pressure_drop, _fig_sections, _fig_alpha_profiles, _fig_frictional_pressure_closures,
-                         _fig_pf_profiles, _fig_tau_profiles, _fig_profiles_qs08), outdir, plan, records)
+                         _fig_pf_profiles, _fig_tau_profiles, _fig_profiles_qs08, _fig_developing), outdir, plan, records)
+
+
+def _fig_developing(outdir, plan, records):
+    """Δp(x) and the holdup along the developing pipe at Q_s = 0.8, each model, with the fully
+    developed section's slope and the measured 4.26 kPa."""
+    runs_ = [(info, records[n].metrics) for n, (k, info, c) in plan.items()
+             if k == "developing" and info["rate"] == "0.8" and "x" in records[n].metrics]
+    if not runs_:
+        return None
+    mx = _matrix(plan, records)
+    fig = _figure()(10, 4)
+    a1, a2 = fig.subplots(1, 2)
+    for info, m in runs_:
+        x, col, lab = np.asarray(m["x"]), COLORS[info["model"]], LABELS[info["model"]]
+        a1.plot(x, np.asarray(m["dp_x"]) / 1e3, color=col, label=f"{lab}, developing")
+        full = mx.get(("0.8", info["model"]), {}).get("dpdx")
+        if full:
+            a1.plot([0, x[-1]], [0, full * x[-1] / 1e3], ls=":", color=col, label=f"{lab}, fully developed section")
+        a2.plot(x, m["holdup_x"], color=col, label=lab)
+    a1.plot([2.4], [PAPER_DP_MEASURED], "k*", ms=10, label="measured (Table 5)")
+    a1.set_xlabel("x [m]")
+    a1.set_ylabel("Δp from the inlet [kPa]")
+    a1.grid(alpha=0.3)
+    a1.legend(fontsize=7)
+    a2.axhline(runs_[0][1].get("inlet_alpha", np.nan), color="0.5", ls="--", lw=0.8, label="inlet α_s (eq. 23)")
+    a2.set_xlabel("x [m]")
+    a2.set_ylabel("section-mean α_s")
+    a2.grid(alpha=0.3)
+    a2.legend(fontsize=7)
+    fig.suptitle("Developing pipe from the paper's inlet (eqs. 20-23), Q_s = 0.8 m³/h")
+    return _save(fig, outdir / "fig_developing_qs0.8.png")
 
 
 def _save(fig, path: Path) -> Path:
@@ -636,7 +756,7 @@ def _force_table(plan, records) -> str:
     return "\n".join(lines)
 
 
-def _write_readme(outdir, args, rows, grid_rows, sens_rows, plan, records, figures, t_start):
+def _write_readme(outdir, args, rows, grid_rows, sens_rows, plan, records, figures, t_start, dev_rows=()):
     import os
 
     from eulag.output import atomic_write
@@ -646,6 +766,8 @@ def _write_readme(outdir, args, rows, grid_rows, sens_rows, plan, records, figur
         write_csv(outdir / f"{STUDY}-grid.csv", GRID_COLUMNS, grid_rows)
     if sens_rows:
         write_csv(outdir / f"{STUDY}-sensitivity.csv", SENS_COLUMNS, sens_rows)
+    if dev_rows:
+        write_csv(outdir / f"{STUDY}-developing.csv", DEV_COLUMNS, dev_rows)
     quick = bool(args.quick)
     cmd = f"eulag study {STUDY}" + (" --quick" if quick else "") + \
           (f" --only {args.only}" if getattr(args, "only", None) else "") + \
@@ -690,6 +812,14 @@ def _write_readme(outdir, args, rows, grid_rows, sens_rows, plan, records, figur
               f"Modified Berzi, Q_s = 0.8 m³/h, mesh {_grid_text(grid)}, one input changed at a time (base: "
               + (f"{base['dp_kPa']:.2f} kPa" if base and base["dp_kPa"] is not None else "—") + ").", "",
               markdown_table(SENS_COLUMNS, sens_rows), "", f"CSV: [{STUDY}-sensitivity.csv]({STUDY}-sensitivity.csv).", ""]
+    if dev_rows:
+        L += ["## The developing pipe", "",
+              "Each run marched over the 2.4 m pipe from the paper's inlet (`numerics.mode = \"developing\"`, "
+              "`tfm.developing`): a uniform suspension at α_s,inlet of eq. 23 with the Hinkle solids velocity "
+              "of eq. 22 and the 1/7-power profiles of eqs. 20-21, as the paper's 3-D model starts. Δp = ∫ −dp/dx "
+              "dx. M_s Δu_s / A is the momentum flux that accelerating the solids from the inlet to the mean "
+              "velocity at 2.4 m costs; the paper reports its profiles developed from L = 120 D (1.2 m) on.", "",
+              markdown_table(DEV_COLUMNS, dev_rows), "", f"CSV: [{STUDY}-developing.csv]({STUDY}-developing.csv).", ""]
     ft = _force_table(plan, records)
     if ft.count("\n") > 1:
         L += ["## Force balance of the section", "",
