@@ -541,12 +541,12 @@ def _fig_developing(outdir, plan, records):
     fig = _figure()(10, 4)
     a1, a2 = fig.subplots(1, 2)
     for info, m in runs_:
-        x, col, lab = np.asarray(m["x"]), COLORS[info["model"]], LABELS[info["model"]]
-        a1.plot(x, np.asarray(m["dp_x"]) / 1e3, color=col, label=f"{lab}, developing")
+        x, col, lab = np.concatenate([[0.0], m["x"]]), COLORS[info["model"]], LABELS[info["model"]]
+        a1.plot(x, np.concatenate([[0.0], m["dp_x"]]) / 1e3, color=col, label=f"{lab}, developing")
         full = mx.get(("0.8", info["model"]), {}).get("dpdx")
         if full:
             a1.plot([0, x[-1]], [0, full * x[-1] / 1e3], ls=":", color=col, label=f"{lab}, fully developed section")
-        a2.plot(x, m["holdup_x"], color=col, label=lab)
+        a2.plot(x, np.concatenate([[m.get("inlet_alpha", np.nan)], m["holdup_x"]]), color=col, label=lab)
     a1.plot([2.4], [PAPER_DP_MEASURED], "k*", ms=10, label="measured (Table 5)")
     a1.set_xlabel("x [m]")
     a1.set_ylabel("Δp from the inlet [kPa]")
