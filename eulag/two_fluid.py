@@ -290,6 +290,28 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed, march=
     return ds
 
 
+def _savez_atomic(path: Path, **arrays) -> None:
+    """``np.savez`` to ``path`` through a temporary file: a kill never leaves a partial checkpoint."""
+    from eulag.output import atomic_write
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+    atomic_write(path, write)
+
+
+def _read_checkpoint(ck: Path, key: str):
+    """The arrays of checkpoint ``ck`` when it belongs to the case ``key``, else None (an
+    unreadable checkpoint counts as none: the run starts afresh and overwrites it)."""
+    try:
+        with np.load(ck) as d:
+            if str(d["case_json"]) != key:
+                return None
+            return {k: d[k] for k in d.files}
+    except Exception:  # noqa: BLE001 - a torn or foreign file is no checkpoint
+        return None
+
+
 def checkpoint_path(out: Path) -> Path:
     """The checkpoint beside the output ``out``: ``<out>.checkpoint.npz``."""
     out = Path(out)
@@ -326,10 +348,12 @@ def same_case(attrs: dict, case: dict) -> bool:
 def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: bool = False):
     """Run a two-fluid case; return its xarray.Dataset (written to ``out`` when given).
 
-    resume : continue from ``out``'s checkpoint (``<out>.checkpoint.npz``, written every 25
-    iterations and at an unconverged end) when it belongs to the same case (all keys but
-    ``numerics.max_iterations`` and ``[experiment]``); an ``out`` that already holds this finished
-    case is returned without recomputing.
+    resume : continue from ``out``'s checkpoint (``<out>.checkpoint.npz``; fully developed: written
+    every 25 iterations and at an unconverged end; developing: every
+    :data:`CHECKPOINT_STATIONS` stations and at a failure or interruption) when it belongs to the
+    same case (all keys but ``numerics.max_iterations`` and ``[experiment]``; a developing
+    checkpoint also needs the same ``max_iterations``, so that its stations were solved alike);
+    an ``out`` that already holds this finished case is returned without recomputing.
     """
     import xarray as xr
 
@@ -351,15 +375,15 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
     solver = _Solver(pb)
     state = None
     if resume and ck is not None and ck.is_file():
-        with np.load(ck) as d:
-            if str(d["case_json"]) == key:
-                state = SectionState.from_arrays(d)
+        d = _read_checkpoint(ck, key)
+        if d is not None:
+            state = SectionState.from_arrays(d)
     if state is None:
         state = solver.initial_state()
 
     def save(st):
         if ck is not None and st.iteration % 25 == 0:
-            np.savez(ck, case_json=np.array(key), **st.as_arrays())
+            _savez_atomic(ck, case_json=np.array(key), **st.as_arrays())
             if progress:
                 print(f"two-fluid {c.get('name', '')}: iteration {st.iteration}, change {st.history[-1][1]:.2e}, "
                       f"-dp/dx {st.G:.1f} Pa/m", flush=True)
@@ -379,7 +403,7 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
         if ok and ck.is_file():
             ck.unlink()
         elif not ok:
-            np.savez(ck, case_json=np.array(key), **st.as_arrays())
+            _savez_atomic(ck, case_json=np.array(key), **st.as_arrays())
     return ds
 
 
@@ -398,26 +422,27 @@ def _run_developing(case, c, pb, key, out, ck, resume, progress):
     D, n = c["pipe"]["diameter"], c["numerics"]
     rows, fields, start = [], [], None
     if resume and ck is not None and ck.is_file():
-        with np.load(ck) as d:
-            if str(d["case_json"]) == key and "station_x" in d:
-                cols = ("x", "G", "holdup", "ms", "peak", "it", "ok")
-                rows = [{k: d[f"station_{k}"][i].item() for k in cols} for i in range(len(d["station_x"]))]
-                names = [str(v) for v in d["field_names"]]
-                fields = [{nm: d[f"field_{nm}"][i] for nm in names} for i in range(len(rows))]
-                start = (list(rows), SectionState.from_arrays(d))
+        d = _read_checkpoint(ck, key)
+        if d is not None and "station_x" in d and int(d.get("max_iterations", -1)) == pb.max_iterations:
+            cols = ("x", "G", "holdup", "ms", "peak", "it", "ok")
+            rows = [{k: d[f"station_{k}"][i].item() for k in cols} for i in range(len(d["station_x"]))]
+            names = [str(v) for v in d["field_names"]]
+            fields = [{nm: d[f"field_{nm}"][i] for nm in names} for i in range(len(rows))]
+            start = (list(rows), SectionState.from_arrays(d))
 
     def save(st):
         cols = {f"station_{k}": np.array([r[k] for r in rows]) for k in rows[0]}
         names = list(fields[0])
         arrays = {f"field_{nm}": np.stack([f[nm] for f in fields]) for nm in names}
-        np.savez(ck, case_json=np.array(key), field_names=np.array(names), **cols, **arrays, **st.as_arrays())
+        _savez_atomic(ck, case_json=np.array(key), max_iterations=np.array(pb.max_iterations),
+                      field_names=np.array(names), **cols, **arrays, **st.as_arrays())
 
     done = []   # the last completed station's state (for the checkpoint of a failure)
 
     def station(i, x, st, row):
-        done[:] = [SectionState.from_arrays(st.as_arrays())]
         rows.append(row)
         fields.append(_station_fields(st, solver.closures(st)))
+        done[:] = [SectionState.from_arrays(st.as_arrays())]
         if ck is not None and len(rows) % CHECKPOINT_STATIONS == 0:
             save(st)
         if progress and len(rows) % CHECKPOINT_STATIONS == 0:
@@ -429,10 +454,13 @@ def _run_developing(case, c, pb, key, out, ck, resume, progress):
     try:
         res = march_pipe(pb, c["pipe"]["length"], first_step=n["first_step_diameters"] * D, growth=n["step_growth"],
                          max_step=n["max_step_diameters"] * D, callback=station, start=start, solver=solver)
-    except SectionDivergence as exc:
-        if ck is not None and done:
+    except BaseException as exc:
+        # a failure or an interruption: keep every completed station for --resume
+        if ck is not None and done and len(fields) == len(rows):
             save(done[-1])
-        raise RuntimeError(f"two-fluid {c.get('name', '')}: {exc}") from None
+        if isinstance(exc, SectionDivergence):
+            raise RuntimeError(f"two-fluid {c.get('name', '')}: {exc}") from None
+        raise
     ok = bool(res.converged.all())
     bad = [i + 1 for i, r in enumerate(rows) if not r["ok"]]
     reason = ("converged" if ok else f"not converged: {len(bad)} of {len(rows)} stations reached "

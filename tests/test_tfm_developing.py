@@ -155,3 +155,13 @@ def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, monkeypatch):
     assert not tf.checkpoint_path(out).exists()
     for v in ("gas_ux", "solids_ux", "solids_fraction", "pressure_gradient", "pressure_drop", "gas_k"):
         np.testing.assert_array_equal(again[v].values, whole[v].values)
+
+
+def test_a_torn_checkpoint_counts_as_none(tmp_path):
+    case = small_case(nr=6, nt=12, length=0.1)
+    out = tmp_path / "tf.nc"
+    tf.checkpoint_path(out).write_bytes(b"PK\x03\x04 torn")
+    ds = run_two_fluid(case, out, resume=True)
+    fresh = run_two_fluid(case, tmp_path / "fresh.nc")
+    assert ds.attrs["converged"] == "true"
+    np.testing.assert_array_equal(ds["pressure_gradient"].values, fresh["pressure_gradient"].values)

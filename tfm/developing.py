@@ -24,7 +24,6 @@ geometrically from ``first_step`` so the inlet region is resolved.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,7 +31,7 @@ import numpy as np
 from .inlet import hinkle_1953_solids_velocity, inlet_solids_fraction, seventh_power_profile
 from .section import SectionDivergence, SectionProblem, SectionState, _Solver
 
-__all__ = ["MarchResult", "axial_stations", "development_length", "inlet_state", "march_pipe"]
+__all__ = ["MarchResult", "axial_stations", "inlet_state", "march_pipe"]
 
 
 def axial_stations(length: float, first_step: float, growth: float, max_step: float) -> np.ndarray:
@@ -114,27 +113,12 @@ def march_pipe(pb: SectionProblem, length: float, first_step: float | None = Non
     rows, st = ([], st0) if start is None else (list(start[0]), start[1])
     if len(rows) > len(xs):
         raise ValueError(f"a march of {len(rows)} stations cannot continue on {len(xs)} stations")
-    c = None
-    for i in range(len(rows), len(xs)):
-        x = float(xs[i])
-        dx = x - (float(xs[i - 1]) if i else 0.0)
-        up = dict(ug=st.ug.copy(), us=st.us.copy(), k=st.k.copy(), eps=st.eps.copy(), theta=st.theta.copy())
-        solver.conv = dict(cg=pb.rho_g * (1.0 - st.alpha) * np.maximum(st.ug, 0.0) / dx,
-                           cs=pb.rho_s * st.alpha * np.maximum(st.us, 0.0) / dx,
-                           qs=st.alpha * np.maximum(st.us, 0.0) / dx, dx=dx, **up)
-        st.iteration, st.history = 0, []
-        try:
-            st, conv_ok, c = solver.run(st)
-        except SectionDivergence as exc:
-            raise SectionDivergence(f"station {i + 1} (x = {x:.4g} m): {exc}") from None
-        row = dict(x=x, G=float(st.G), holdup=float(np.sum(st.alpha * A) / solver.Atot),
-                   ms=float(np.sum(pb.rho_s * st.alpha * st.us * A)), peak=float(st.alpha.max()),
-                   it=int(st.iteration), ok=bool(conv_ok))
-        rows.append(row)
-        if callback is not None:
-            callback(i, x, st, row)
-    if c is None:
-        c = solver.closures(st)
+    try:
+        _march(pb, solver, xs, rows, st, callback)
+    finally:
+        solver.conv = None      # the solver solves the developed section again
+    st = solver.last_station
+    c = solver.closures(st)
     col = {k: np.array([r[k] for r in rows]) for k in ("x", "G", "holdup", "ms", "peak", "it", "ok")}
     dxs = np.diff(np.concatenate([[0.0], col["x"]]))
     hold = col["holdup"]
@@ -144,12 +128,26 @@ def march_pipe(pb: SectionProblem, length: float, first_step: float | None = Non
                        converged=col["ok"].astype(bool), inlet=inlet, state=st, closures=c, solver=solver)
 
 
-def development_length(res: MarchResult, tol: float = 0.02) -> float:
-    """The first x from which −dp/dx stays within ``tol`` of its value at the last station [m]
-    (nan if it never does)."""
-    g_end = res.G[-1]
-    off = np.abs(res.G - g_end) > tol * abs(g_end)
-    if not off.any():
-        return float(res.x[0])
-    last = int(np.flatnonzero(off)[-1])
-    return float(res.x[last + 1]) if last + 1 < len(res.x) else math.nan
+def _march(pb, solver, xs, rows, st, callback):
+    """The stations from ``len(rows)`` on (``rows`` grows; ``solver.last_station``: the last state)."""
+    A = solver.A
+    solver.last_station = st
+    for i in range(len(rows), len(xs)):
+        x = float(xs[i])
+        dx = x - (float(xs[i - 1]) if i else 0.0)
+        up = dict(ug=st.ug.copy(), us=st.us.copy(), k=st.k.copy(), eps=st.eps.copy(), theta=st.theta.copy())
+        solver.conv = dict(cg=pb.rho_g * (1.0 - st.alpha) * np.maximum(st.ug, 0.0) / dx,
+                           cs=pb.rho_s * st.alpha * np.maximum(st.us, 0.0) / dx,
+                           qs=st.alpha * np.maximum(st.us, 0.0) / dx, dx=dx, **up)
+        st.iteration, st.history = 0, []
+        try:
+            st, conv_ok, _ = solver.run(st)
+        except SectionDivergence as exc:
+            raise SectionDivergence(f"station {i + 1} (x = {x:.4g} m): {exc}") from None
+        row = dict(x=x, G=float(st.G), holdup=float(np.sum(st.alpha * A) / solver.Atot),
+                   ms=float(np.sum(pb.rho_s * st.alpha * st.us * A)), peak=float(st.alpha.max()),
+                   it=int(st.iteration), ok=bool(conv_ok))
+        rows.append(row)
+        solver.last_station = st
+        if callback is not None:
+            callback(i, x, st, row)

@@ -449,11 +449,13 @@ class _Solver:
             alpha = self.distribute(st, c, pb.alpha_steps)
             # solids mass flow -> inventory
             ms = float(np.sum(alpha * pb.rho_s * st.us * self.A))
-            ratio = pb.m_s / max(ms, 1e-12)
             if self.conv is None:
+                ratio = pb.m_s / max(ms, 1e-12)
                 alpha = alpha * ratio ** 0.5
-            else:       # a marching station: the solids flow is carried by the axial flux balance
-                ratio = 1.0
+            else:       # a marching station: the solids flow is carried by the axial flux balance;
+                # what the station carries on is checked against what came in (a clip or the cap
+                # below would lose mass: the station then cannot converge)
+                ratio = float(np.sum(pb.rho_s * self.conv["qs"] * self.A)) * self.conv["dx"] / max(ms, 1e-12)
             # the inventory update never packs a cell beyond α_max − 0.02 (without friction, "none",
             # the deposit reaches that bound and the solids flow stays short of M_s: reported unconverged)
             over = alpha > pb.params.alpha_max - 0.02

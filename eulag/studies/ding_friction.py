@@ -219,7 +219,7 @@ def extract_metrics(ds, case) -> dict:
     area = np.asarray(ds["cell_area"].values, float)
     amin = float(d.get("friction", {}).get("alpha_min", 0.4))
     dp = float(ds["pressure_drop"].values)
-    developing = ds.sizes["x"] > 1
+    developing = ds.attrs.get("numerics.mode") == "developing"
     m = {"dp": dp, "dpdx": float(ds["pressure_gradient"].values[-1]),
          "peak_alpha": float(alpha.max()), "deposit_area": float(area[alpha > amin].sum() / area.sum()),
          "holdup": float(ds["solids_holdup"].values), "capped": int(ds["capped_cells"].values),
