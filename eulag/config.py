@@ -470,7 +470,8 @@ class PhysicsConfig(_Section):
     magnus_model : str
         Rotational lift coefficient: ``"lun-liu"`` (default) or ``"oesterle-bui-dinh"``.
     langevin_drift_correction : bool
-        Drift correction for inhomogeneous turbulence, (1 - R_P) form (default true).
+        Drift correction for inhomogeneous turbulence (MacInnes & Bracco 1992), its time factor
+        set by ``langevin_drift_form`` (default true; false: the reference paper's eq. 12).
     inter_particle_collisions : bool
         Stochastic inter-particle collisions (Sommerfeld 2001). Default: true for four-way
         coupling, false otherwise; true needs four-way coupling.
