@@ -414,7 +414,7 @@ CHECKPOINT_STATIONS = 10
 def _run_developing(case, c, pb, key, out, ck, resume, progress):
     """``numerics.mode = "developing"``: march the pipe (:func:`tfm.developing.march_pipe`) from the
     paper's inlet over ``pipe.length``; checkpoint every :data:`CHECKPOINT_STATIONS` stations
-    (the stations done, their fields and the last state) and at a failure."""
+    (the stations done, their fields and the last state) and at a failure or interruption."""
     from eulag.output import write_dataset
     from tfm.developing import march_pipe
     from tfm.section import SectionDivergence, SectionState, _Solver
