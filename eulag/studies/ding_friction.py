@@ -469,31 +469,26 @@ def statements(plan, records) -> list[dict]:
     out = []
     if not mx:
         return out
-    # Δp against Q_s: falls then rises
-    shape = []
-    for m in models:
-        dps = [mx[(r, m)]["dp"] for r in rates if (r, m) in mx]
-        if len(dps) >= 3:
-            i = int(np.argmin(dps))
-            shape.append(f"{SHORT[m]}: minimum at Q_s = {rates[i]}" + ("" if 0 < i < len(dps) - 1 else " (an end)")
-                         + f", max/min {max(dps) / min(dps):.2f}")
+    # Δp against Q_s: falls then rises; the models' order (the developed section, then the pipe
+    # developing from the paper's inlet)
+    dev = _developing(plan, records)
+    shape, dshape = _shape(mx, rates, models), _shape(dev, rates, models)
     if shape:
         out.append({"figure": "Fig. 3", "paper": "Δp first falls, then rises as Q_s rises (minimum near Q_s = 0.8)",
-                    "here": "; ".join(shape)})
+                    "here": shape + (f" — developing pipe: {dshape}" if dshape else "")})
     if ("0.8", "berzi") in mx:
         e = mx[("0.8", "berzi")]["dp"] / 1e3 / PAPER_DP_MEASURED - 1
         out.append({"figure": "Table 5", "paper": "Berzi, Q_s = 0.8: 3.77-4.09 kPa on meshes A-D, measured 4.26 kPa "
                     "(relative errors of all models -4.9 % to +7.6 %)",
-                    "here": f"{mx[('0.8', 'berzi')]['dp'] / 1e3:.2f} kPa ({e * 100:+.0f} %)"})
-    per = []
-    for r in rates:
-        vals = {m: mx[(r, m)]["dp"] for m in models if (r, m) in mx}
-        if len(vals) == 3:
-            spread = (max(vals.values()) - min(vals.values())) / min(vals.values()) * 100
-            per.append(f"Q_s {r}: {_order(vals)} (spread {spread:.1f} %)")
+                    "here": f"{mx[('0.8', 'berzi')]['dp'] / 1e3:.2f} kPa ({e * 100:+.0f} %)"
+                            + (f" — developing pipe: {dev[('0.8', 'berzi')]['dp'] / 1e3:.2f} kPa "
+                               f"({(dev[('0.8', 'berzi')]['dp'] / 1e3 / PAPER_DP_MEASURED - 1) * 100:+.0f} %)"
+                               if ("0.8", "berzi") in dev else "")})
+    per, dper = _ordering(mx, rates, models), _ordering(dev, rates, models)
     if per:
         out.append({"figure": "Fig. 3", "paper": "Δp: Dartevelle (D) highest and Berzi (B) lowest for Q_s ≤ 0.8; "
-                    "B highest above 0.8; the spread shrinks as Q_s rises", "here": "; ".join(per)})
+                    "B highest above 0.8; the spread shrinks as Q_s rises",
+                    "here": per + (f" — developing pipe: {dper}" if dper else "")})
     dep = []
     for m in models:
         a = [mx[(r, m)]["deposit_area"] for r in rates if (r, m) in mx]
@@ -515,6 +510,36 @@ def statements(plan, records) -> list[dict]:
         out.append({"figure": "Figs. 6, 10f", "paper": "deposit α_s: Dartevelle lowest, Berzi highest",
                     "here": "deposit peak α_s: " + "; ".join(pk)})
     return out
+
+
+def _developing(plan, records):
+    """{(rate, model): metrics} of the finished developing-pipe runs."""
+    return {(info["rate"], info["model"]): records[n].metrics for n, (k, info, c) in plan.items()
+            if k == "developing" and records[n].ok and "dp" in records[n].metrics}
+
+
+def _shape(runs: dict, rates, models) -> str:
+    """Where Δp(Q_s) of each model has its minimum, and its max/min ('' with fewer than 3 rates)."""
+    shape = []
+    for m in models:
+        got = [(r, runs[(r, m)]["dp"]) for r in rates if (r, m) in runs]
+        if len(got) >= 3:
+            i = int(np.argmin([d for _, d in got]))
+            dps = [d for _, d in got]
+            shape.append(f"{SHORT[m]}: minimum at Q_s = {got[i][0]}" + ("" if 0 < i < len(got) - 1 else " (an end)")
+                         + f", max/min {max(dps) / min(dps):.2f}")
+    return "; ".join(shape)
+
+
+def _ordering(runs: dict, rates, models) -> str:
+    """The models' Δp order and spread at each rate with all three ('' if none)."""
+    per = []
+    for r in rates:
+        vals = {m: runs[(r, m)]["dp"] for m in models if (r, m) in runs}
+        if len(vals) == 3:
+            spread = (max(vals.values()) - min(vals.values())) / min(vals.values()) * 100
+            per.append(f"Q_s {r}: {_order(vals)} (spread {spread:.1f} %)")
+    return "; ".join(per)
 
 
 STATEMENT_COLUMNS = [Column("figure", "paper"), Column("paper", "the paper's statement"), Column("here", "this study")]
