@@ -165,3 +165,17 @@ def test_a_torn_checkpoint_counts_as_none(tmp_path):
     fresh = run_two_fluid(case, tmp_path / "fresh.nc")
     assert ds.attrs["converged"] == "true"
     np.testing.assert_array_equal(ds["pressure_gradient"].values, fresh["pressure_gradient"].values)
+
+
+def test_a_station_that_loses_solids_is_reported_unconverged(tmp_path):
+    """Without friction and with α_max just above the inlet α_s, the packing cap (α_max − 0.02)
+    binds at the first stations and removes solids: those stations must not count as converged
+    (measured: 0.5 % and 0.7 % of M_s lost at stations 1 and 2)."""
+    case = small_case(nr=6, nt=12, length=0.05, max_iterations=60)
+    case["friction"].update(model="none", alpha_min=0.1, alpha_max=0.268)
+    ds = run_two_fluid(case, tmp_path / "cap.nc")
+    assert ds.attrs["converged"] == "false"
+    assert ds.attrs["stop_reason"].startswith("not converged: 2 of ")
+    assert "first: station 1," in ds.attrs["stop_reason"]
+    assert ds["station_converged"].values[:2].tolist() == [0, 0]
+    assert ds["solids_mass_flow_x"].values[1] < 0.995 * 0.194

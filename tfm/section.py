@@ -448,19 +448,21 @@ class _Solver:
             c = self.closures(st)
             alpha = self.distribute(st, c, pb.alpha_steps)
             # solids mass flow -> inventory
-            ms = float(np.sum(alpha * pb.rho_s * st.us * self.A))
             if self.conv is None:
+                ms = float(np.sum(alpha * pb.rho_s * st.us * self.A))
                 ratio = pb.m_s / max(ms, 1e-12)
                 alpha = alpha * ratio ** 0.5
-            else:       # a marching station: the solids flow is carried by the axial flux balance;
-                # what the station carries on is checked against what came in (a clip or the cap
-                # below would lose mass: the station then cannot converge)
-                ratio = float(np.sum(pb.rho_s * self.conv["qs"] * self.A)) * self.conv["dx"] / max(ms, 1e-12)
             # the inventory update never packs a cell beyond α_max − 0.02 (without friction, "none",
             # the deposit reaches that bound and the solids flow stays short of M_s: reported unconverged)
             over = alpha > pb.params.alpha_max - 0.02
             if np.any(over):
                 alpha = np.minimum(alpha, pb.params.alpha_max - 0.02)
+            if self.conv is not None:
+                # a marching station: the solids flow is carried by the axial flux balance; what the
+                # station carries on is checked against what came in (the cap above or a clip of
+                # α_s at 0 loses mass: the station then cannot converge)
+                ms = float(np.sum(alpha * pb.rho_s * st.us * self.A))
+                ratio = float(np.sum(pb.rho_s * self.conv["qs"] * self.A)) * self.conv["dx"] / max(ms, 1e-12)
             self.check("alpha_s", alpha, st.iteration, lo=0.0)
             da = float(np.max(np.abs(alpha - st.alpha)))
             ra = pb.relax_alpha * relax
