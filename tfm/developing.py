@@ -79,8 +79,7 @@ class MarchResult:
     G: np.ndarray                   # −dp/dx at each station [Pa m-1]
     pressure_drop: np.ndarray       # ∫G dx from the inlet [Pa]
     holdup: np.ndarray              # section-mean α_s
-    solids_velocity: np.ndarray     # M_s/(ρ_s A holdup) [m s-1]
-    solids_mass_flow: np.ndarray    # Σ ρ_s α_s u_s A [kg s-1] (carried exactly by the marching)
+    solids_mass_flow: np.ndarray    # Σ ρ_s α_s u_s A [kg s-1] (carried to the stations' tolerance)
     deposit_peak: np.ndarray        # max α_s
     iterations: np.ndarray          # outer iterations per station
     converged: np.ndarray           # per station
@@ -123,7 +122,6 @@ def march_pipe(pb: SectionProblem, length: float, first_step: float | None = Non
     dxs = np.diff(np.concatenate([[0.0], col["x"]]))
     hold = col["holdup"]
     return MarchResult(x=col["x"], G=col["G"], pressure_drop=np.cumsum(col["G"] * dxs), holdup=hold,
-                       solids_velocity=pb.m_s / (pb.rho_s * solver.Atot * np.maximum(hold, 1e-300)),
                        solids_mass_flow=col["ms"], deposit_peak=col["peak"], iterations=col["it"].astype(int),
                        converged=col["ok"].astype(bool), inlet=inlet, state=st, closures=c, solver=solver)
 
@@ -137,8 +135,7 @@ def _march(pb, solver, xs, rows, st, callback):
         dx = x - (float(xs[i - 1]) if i else 0.0)
         up = dict(ug=st.ug.copy(), us=st.us.copy(), k=st.k.copy(), eps=st.eps.copy(), theta=st.theta.copy())
         solver.conv = dict(cg=pb.rho_g * (1.0 - st.alpha) * np.maximum(st.ug, 0.0) / dx,
-                           cs=pb.rho_s * st.alpha * np.maximum(st.us, 0.0) / dx,
-                           qs=st.alpha * np.maximum(st.us, 0.0) / dx, dx=dx, **up)
+                           cs=pb.rho_s * st.alpha * np.maximum(st.us, 0.0) / dx, dx=dx, **up)
         st.iteration, st.history = 0, []
         try:
             st, conv_ok, _ = solver.run(st)

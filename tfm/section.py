@@ -143,8 +143,7 @@ class _Solver:
         self.face_up_is_N = sec.ny > 0.0   # weight flux comes from the upper cell
         #: axial convection of a marching station (:mod:`tfm.developing`); None: fully developed.
         #: Keys: ``cg``, ``cs`` (ρ_g α_g u_g and ρ_s α_s u_s of the upstream station over Δx
-        #: [kg m-3 s-1]), ``ug``, ``us``, ``k``, ``eps``, ``theta`` (upstream values), ``qs``
-        #: (α_s u_s upstream over Δx [s-1]), ``dx`` [m].
+        #: [kg m-3 s-1]), ``ug``, ``us``, ``k``, ``eps``, ``theta`` (upstream values), ``dx`` [m].
         self.conv = None
 
     # ------------------------------------------------------------ helpers
@@ -356,7 +355,7 @@ class _Solver:
         cv = self.conv
         # marching station: the axial solids flux (α_s u_s − (α_s u_s)_up)/Δx joins the balance
         ax_d = np.zeros(n) if cv is None else np.maximum(st.us, 0.0) * A / cv["dx"]
-        ax_b = np.zeros(n) if cv is None else cv["qs"] * A
+        ax_b = np.zeros(n) if cv is None else cv["cs"] / pb.rho_s * A   # (α_s u_s)_up / Δx
         for _ in range(steps):
             a_old = alpha.copy()
             x = a_old.copy()
@@ -462,7 +461,7 @@ class _Solver:
                 # station carries on is checked against what came in (the cap above or a clip of
                 # α_s at 0 loses mass: the station then cannot converge)
                 ms = float(np.sum(alpha * pb.rho_s * st.us * self.A))
-                ratio = float(np.sum(pb.rho_s * self.conv["qs"] * self.A)) * self.conv["dx"] / max(ms, 1e-12)
+                ratio = float(np.sum(self.conv["cs"] * self.A)) * self.conv["dx"] / max(ms, 1e-12)
             self.check("alpha_s", alpha, st.iteration, lo=0.0)
             da = float(np.max(np.abs(alpha - st.alpha)))
             ra = pb.relax_alpha * relax
