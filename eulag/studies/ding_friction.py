@@ -275,8 +275,8 @@ def _development_metrics(ds, d) -> dict:
     x = np.asarray(ds["x"].values, float)
     p = -np.asarray(ds["pressure"].values, float)          # Δp from the inlet
     L = float(x[-1])
-    rho_s, ms, D = float(d["solids"]["density"]), float(d["solids"]["mass_flow"]), float(d["pipe"]["diameter"])
-    area = math.pi * D**2 / 4
+    rho_s, ms = float(d["solids"]["density"]), float(d["solids"]["mass_flow"])
+    area = float(np.sum(ds["cell_area"].values))    # the section of the holdup's mean
     hold = np.asarray(ds["solids_holdup_x"].values, float)
     us_end = ms / (rho_s * area * hold[-1])
     us_in = float(ds.attrs.get("inlet_solids_velocity", math.nan))
