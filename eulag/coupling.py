@@ -644,14 +644,16 @@ class CouplingLoop:
         """The gas field with ``sources`` (None: single phase), its wall time and the implicit
         k-ε relaxation it needed (1 unless a first attempt diverged).  ``final``: a solve to
         convergence (periodic mode: not capped at gas_iterations_per_pass), from the last
-        iterate.  ``residual``: the coupling residual of ``sources`` (numerics.gas_station_retries)."""
+        iterate.  ``residual``: the coupling residual of ``sources`` (numerics.gas_station_retries,
+        numerics.gas_tolerance_early)."""
         n = self.case.numerics
         g = self.case.gas
         initial = self.gas if self.mesh.mode == "periodic" else None
         inner = sources is not None and self.mesh.mode == "periodic" and not final
-        retries = bool(n.gas_station_retries == "always" or sources is None or final
-                       or self.phase == "final"
-                       or (np.isfinite(residual) and residual <= n.coupling_tolerance))
+        near = bool(sources is None or final or self.phase == "final"
+                    or (np.isfinite(residual) and residual <= n.coupling_tolerance))
+        retries = near or n.gas_station_retries == "always"
+        tol = n.gas_tolerance if near or n.gas_tolerance_early is None else n.gas_tolerance_early
         cap = n.gas_iterations_per_pass if inner else n.gas_max_iterations
         t0 = time.perf_counter()
         try:
@@ -659,7 +661,7 @@ class CouplingLoop:
             for attempt, (tr, mr) in enumerate(relaxations):
                 try:
                     field_ = rans.solve(self.mesh, self.gas_props, g.bulk_velocity, g.inlet_k,
-                                        g.inlet_epsilon, sources, tol=n.gas_tolerance,
+                                        g.inlet_epsilon, sources, tol=tol,
                                         max_iterations=cap, initial=initial,
                                         turbulence_relaxation=tr, momentum_relaxation=mr,
                                         require_convergence=not inner, station_retries=retries)

@@ -772,3 +772,32 @@ def test_the_gas_march_retries_stalled_stations_as_the_case_says(monkeypatch, se
     loop.step()
     loop.step()
     assert flags == retried
+
+
+
+@pytest.mark.parametrize("tolerance, early", [(1e-3, [1e-6, 1e-3, 1e-3]), (1000.0, [1e-6, 1e-3, 1e-6])])
+def test_the_early_gas_solves_take_the_looser_tolerance_the_case_gives(monkeypatch, tolerance, early):
+    """numerics.gas_tolerance_early: the gas solves of sources whose coupling residual is above
+    coupling_tolerance (and of the first pass, which has none) take it; the single-phase solve
+    and every solve within the coupling tolerance take gas_tolerance."""
+    import rans
+
+    loop = CouplingLoop(small_case(**{"pipe.mode": "developing", "pipe.length": 0.2,
+                                      "numerics.axial_cells": 10,
+                                      "numerics.gas_tolerance_early": 1e-3,
+                                      "numerics.coupling_tolerance": tolerance}))
+    real = rans.solve
+    tols = []
+
+    def solve(*args, **kwargs):
+        tols.append(kwargs["tol"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(rans, "solve", solve)
+    loop.step()
+    loop.step()
+    assert tols == early
+    default = CouplingLoop(small_case(**{"pipe.mode": "developing", "pipe.length": 0.2,
+                                         "numerics.axial_cells": 10}))
+    assert default.case.numerics.gas_tolerance_early is None
+    assert default.case.to_attrs()["numerics.gas_tolerance_early"] == "numerics.gas_tolerance"
