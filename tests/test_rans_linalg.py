@@ -380,3 +380,4 @@ def test_a_second_k_eps_solve_under_particle_dominated_turbulence_reaches_the_sa
                                    atol=1e-3 * np.abs(getattr(one, v)).max(), err_msg=v)
     np.testing.assert_allclose(two.k, one.k, rtol=100 * tol)
     np.testing.assert_allclose(two.epsilon, one.epsilon, rtol=100 * tol)
+    np.testing.assert_allclose(two.pressure_gradient, one.pressure_gradient, rtol=10 * tol)
