@@ -326,15 +326,20 @@ def test_the_anderson_accelerated_march_converges_to_the_plain_fixed_point(monke
     assert solver.ANDERSON_DEPTH > 0
     assert plain.converged and mixed.converged
     assert len(mixed.residuals) < 0.85 * len(plain.residuals)  # 1,046 against 1,408 measured
-    tol = 1e-6  # the benchmark's station tolerance (rans.solve default)
-    np.testing.assert_allclose(mixed.ux, plain.ux, rtol=0, atol=5 * tol * 10.0)
+    _assert_same_sinks_march(mixed, plain)
+
+
+def _assert_same_sinks_march(a, b, tol=1e-6):
+    """Two marches of the sinks benchmark at the same fixed point to the station tolerance
+    ``tol`` (rans.solve's default): u_x to the tolerance times U_b, the cross flow to 1e-3 of its
+    maximum; k and eps contract slowly where the sink has all but laminarised the cell."""
+    np.testing.assert_allclose(a.ux, b.ux, rtol=0, atol=5 * tol * 10.0)
     for v in ("uy", "uz"):
-        np.testing.assert_allclose(getattr(mixed, v), getattr(plain, v), rtol=0,
-                                   atol=1e-3 * np.abs(getattr(plain, v)).max(), err_msg=v)
-    # k and eps contract slowly where the sink has all but laminarised the cell
-    np.testing.assert_allclose(mixed.k, plain.k, rtol=100 * tol)
-    np.testing.assert_allclose(mixed.epsilon, plain.epsilon, rtol=100 * tol)
-    np.testing.assert_allclose(mixed.pressure_gradient, plain.pressure_gradient, rtol=10 * tol)
+        np.testing.assert_allclose(getattr(a, v), getattr(b, v), rtol=0,
+                                   atol=1e-3 * np.abs(getattr(b, v)).max(), err_msg=v)
+    np.testing.assert_allclose(a.k, b.k, rtol=100 * tol)
+    np.testing.assert_allclose(a.epsilon, b.epsilon, rtol=100 * tol)
+    np.testing.assert_allclose(a.pressure_gradient, b.pressure_gradient, rtol=10 * tol)
 
 
 def test_a_mixed_station_state_that_is_not_finite_is_rejected():
@@ -373,11 +378,4 @@ def test_a_second_k_eps_solve_under_particle_dominated_turbulence_reaches_the_sa
     one, two = out[1], out[2]
     assert one.converged and two.converged
     assert len(two.residuals) < 0.75 * len(one.residuals)
-    tol = 1e-6
-    np.testing.assert_allclose(two.ux, one.ux, rtol=0, atol=5 * tol * 10.0)
-    for v in ("uy", "uz"):
-        np.testing.assert_allclose(getattr(two, v), getattr(one, v), rtol=0,
-                                   atol=1e-3 * np.abs(getattr(one, v)).max(), err_msg=v)
-    np.testing.assert_allclose(two.k, one.k, rtol=100 * tol)
-    np.testing.assert_allclose(two.epsilon, one.epsilon, rtol=100 * tol)
-    np.testing.assert_allclose(two.pressure_gradient, one.pressure_gradient, rtol=10 * tol)
+    _assert_same_sinks_march(two, one)
