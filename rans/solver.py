@@ -329,6 +329,28 @@ class _StationSolver:
                 f"(station {self.station}, ring {j}, sector {k})"
             )
 
+    def _turbulence_terms(self, k, eps, mut, G2, tau_w):
+        """P_k = mu_t G^2 and the k equation's dissipation eps, with the wall-function values
+        in the wall cells (from the wall cells' k and tau_w)."""
+        wall, yP = self.sec.wall, self.sec.wall_distance
+        Pk = mut * G2
+        # optional production limiter P_k <= c rho eps (docs/physics.md, section 2), off by
+        # default:
+        # inactive in single-phase pipe flow (P_k/(rho eps) < 3), but under strong particle
+        # sinks (C_eps3 > C_eps1 lengthens k/eps) it starves the turbulence and drives k to
+        # zero where the particles gather.  Cells where it acts are counted.
+        if self.production_limit is not None:
+            cap = self.production_limit * self.rho * eps
+            over = Pk > cap
+            if over.any():
+                Pk = np.where(over, cap, Pk)
+                self.limited = max(self.limited, int(np.count_nonzero(over)))
+        kw = k[wall]
+        Pk[wall] = ke.wall_production(tau_w, kw, yP)
+        eps_sink = eps.copy()
+        eps_sink[wall] = ke.wall_epsilon(kw, yP)
+        return Pk, eps_sink
+
     def _k_eps_sweep(self, k_it, e_it, mut, Pk, eps_sink, Sk, Se, kref, eref, flux, ax, hist, c0, A, wall, yP, src,
                      relax_turb):
         sec, rho, mu = self.sec, self.rho, self.mu
@@ -473,35 +495,17 @@ class _StationSolver:
             dudx = (c0 * ux_new - hist["ux"]) / dx
             G2 = (dux[0] ** 2 + dux[1] ** 2 + 2.0 * duz[0] ** 2 + 2.0 * duy[1] ** 2
                   + (duz[1] + duy[0]) ** 2 + 2.0 * dudx**2)
-            Pk = mut * G2
-            # optional production limiter P_k <= c rho eps (docs/physics.md, section 2), off by
-            # default:
-            # inactive in single-phase pipe flow (P_k/(rho eps) < 3), but under strong particle
-            # sinks (C_eps3 > C_eps1 lengthens k/eps) it starves the turbulence and drives k to
-            # zero where the particles gather.  Cells where it acts are counted.
-            if self.production_limit is not None:
-                cap = self.production_limit * rho * st.eps
-                over = Pk > cap
-                if over.any():
-                    Pk = np.where(over, cap, Pk)
-                    self.limited = max(self.limited, int(np.count_nonzero(over)))
             ut = -uz[wall] * sec.wall_ny + uy[wall] * sec.wall_nz
             Ut = np.sqrt(ux_new[wall] ** 2 + ut**2)
             tau_w = cw * Ut
-            kw = st.k[wall]
-            Pk[wall] = ke.wall_production(tau_w, kw, yP)
-            eps_w = ke.wall_epsilon(kw, yP)
-            eps_sink = st.eps.copy()
-            eps_sink[wall] = eps_w
 
             Sk = src["k"]
             Se = src["eps"]
             kref = src["k_ref"] if src["k_ref"] is not None else st.k
             eref = src["eps_ref"] if src["eps_ref"] is not None else st.eps
-            k_it, e_it, mut_it, Pk_it = st.k, st.eps, mut, Pk
+            k_it, e_it, mut_it = st.k, st.eps, mut
             sweeps = 1
-            if (KE_SWEEPS > 1 and relax_turb >= 1.0 and not self.periodic and src["k_ref"] is not None
-                    and not (Sk >= 0.0).all()):
+            if KE_SWEEPS > 1 and relax_turb >= 1.0 and not self.periodic and src["k_ref"] is not None:
                 # particle-dominated turbulence in the march: the section's particle k sink
                 # (referenced, linear in k) against its dissipation
                 sink = float(np.sum(A * np.maximum(-Sk, 0.0) * st.k / kref))
@@ -512,16 +516,7 @@ class _StationSolver:
                     k_it = np.maximum(k_new, self.k_floor)
                     e_it = np.maximum(eps_new, self.eps_floor)
                     mut_it = rho * ke.C_MU * k_it**2 / e_it
-                    Pk_it = mut_it * G2
-                    if self.production_limit is not None:
-                        cap = self.production_limit * rho * e_it
-                        over = Pk_it > cap
-                        if over.any():
-                            Pk_it = np.where(over, cap, Pk_it)
-                            self.limited = max(self.limited, int(np.count_nonzero(over)))
-                    Pk_it[wall] = ke.wall_production(tau_w, k_it[wall], yP)
-                    eps_sink = e_it.copy()
-                    eps_sink[wall] = ke.wall_epsilon(k_it[wall], yP)
+                Pk_it, eps_sink = self._turbulence_terms(k_it, e_it, mut_it, G2, tau_w)
                 k_new, eps_new, low_k = self._k_eps_sweep(k_it, e_it, mut_it, Pk_it, eps_sink, Sk, Se, kref, eref,
                                                           flux, ax, hist, c0, A, wall, yP, src, relax_turb)
             # floors (docs/physics.md, section 2) where strong particle sinks laminarise a pocket

@@ -774,7 +774,6 @@ def test_the_gas_march_retries_stalled_stations_as_the_case_says(monkeypatch, se
     assert flags == retried
 
 
-
 @pytest.mark.parametrize("tolerance, early", [(1e-3, [1e-6, 1e-3, 1e-3]), (1000.0, [1e-6, 1e-3, 1e-6])])
 def test_the_early_gas_solves_take_the_looser_tolerance_the_case_gives(monkeypatch, tolerance, early):
     """numerics.gas_tolerance_early: the gas solves of sources whose coupling residual is above
