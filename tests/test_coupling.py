@@ -755,23 +755,29 @@ def test_the_gas_march_retries_stalled_stations_as_the_case_says(monkeypatch, se
     """numerics.gas_station_retries = "near-convergence" lets the developing march keep a stalled
     station's first attempt while the coupling residual is above its tolerance; the single-phase
     solve and every solve within the tolerance retry as before."""
+    calls = _two_passes_gas_calls(monkeypatch, **{"numerics.gas_station_retries": setting,
+                                                  "numerics.coupling_tolerance": tolerance})
+    assert [c["station_retries"] for c in calls] == retried
+
+
+def _two_passes_gas_calls(monkeypatch, **keys):
+    """The keyword arguments of every rans.solve call of two coupling passes of a short
+    developing pipe (small_case with ``keys``): the single-phase solve and one per pass."""
     import rans
 
     loop = CouplingLoop(small_case(**{"pipe.mode": "developing", "pipe.length": 0.2,
-                                      "numerics.axial_cells": 10,
-                                      "numerics.gas_station_retries": setting,
-                                      "numerics.coupling_tolerance": tolerance}))
+                                      "numerics.axial_cells": 10, **keys}))
     real = rans.solve
-    flags = []
+    calls = []
 
     def solve(*args, **kwargs):
-        flags.append(kwargs["station_retries"])
+        calls.append(kwargs)
         return real(*args, **kwargs)
 
     monkeypatch.setattr(rans, "solve", solve)
     loop.step()
     loop.step()
-    assert flags == retried
+    return calls
 
 
 @pytest.mark.parametrize("tolerance, early", [(1e-3, [1e-6, 1e-3, 1e-3]), (1000.0, [1e-6, 1e-3, 1e-6])])
@@ -779,23 +785,9 @@ def test_the_early_gas_solves_take_the_looser_tolerance_the_case_gives(monkeypat
     """numerics.gas_tolerance_early: the gas solves of sources whose coupling residual is above
     coupling_tolerance (and of the first pass, which has none) take it; the single-phase solve
     and every solve within the coupling tolerance take gas_tolerance."""
-    import rans
-
-    loop = CouplingLoop(small_case(**{"pipe.mode": "developing", "pipe.length": 0.2,
-                                      "numerics.axial_cells": 10,
-                                      "numerics.gas_tolerance_early": 1e-3,
-                                      "numerics.coupling_tolerance": tolerance}))
-    real = rans.solve
-    tols = []
-
-    def solve(*args, **kwargs):
-        tols.append(kwargs["tol"])
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(rans, "solve", solve)
-    loop.step()
-    loop.step()
-    assert tols == early
+    calls = _two_passes_gas_calls(monkeypatch, **{"numerics.gas_tolerance_early": 1e-3,
+                                                  "numerics.coupling_tolerance": tolerance})
+    assert [c["tol"] for c in calls] == early
     default = CouplingLoop(small_case(**{"pipe.mode": "developing", "pipe.length": 0.2,
                                          "numerics.axial_cells": 10}))
     assert default.case.numerics.gas_tolerance_early is None
