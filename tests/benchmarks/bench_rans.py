@@ -13,6 +13,7 @@ import os
 import platform
 import time
 
+import numpy as np
 from fluids.friction import Colebrook
 
 from rans import GasProperties, PipeMesh, solve
@@ -37,6 +38,40 @@ def run(mode, nx, nr, nt, repeats=3):
           f"wall y+ {f.wall_yplus.mean():.1f}")
 
 
+def block_lu(nr=20, nt=40, solves=20000, factors=2000):
+    """CPU time per solve and per factorisation of rans.linalg.BlockLU on an nr x nt section
+    (a diagonally dominant periodic-tridiagonal ring block, random ring couplings); checks the
+    solve against numpy's dense one."""
+    from rans import linalg
+
+    rng = np.random.default_rng(1)
+    ring = 6.0 * np.eye(nt) - np.eye(nt, k=1) - np.eye(nt, k=-1)
+    ring[0, -1] = ring[-1, 0] = -1.0
+    D = np.repeat(ring[None], nr, axis=0)
+    L, U = -rng.random((nr, nt)), -rng.random((nr, nt))
+    lu = linalg.BlockLU(D, L, U)
+    b = rng.random(nr * nt)
+    A = np.zeros((nr * nt, nr * nt))
+    for j in range(nr):
+        A[j * nt:(j + 1) * nt, j * nt:(j + 1) * nt] = D[j]
+        if j > 0:
+            A[j * nt:(j + 1) * nt, (j - 1) * nt:j * nt] = np.diag(L[j])
+        if j < nr - 1:
+            A[j * nt:(j + 1) * nt, (j + 1) * nt:(j + 2) * nt] = np.diag(U[j])
+    err = np.abs(lu.solve(b) - np.linalg.solve(A, b)).max() / np.abs(b).max()
+    assert err < 1e-12, err
+    t = time.process_time()
+    for _ in range(solves):
+        lu.solve(b)
+    ts = (time.process_time() - t) / solves
+    t = time.process_time()
+    for _ in range(factors):
+        linalg.BlockLU(D, L, U)
+    tf = (time.process_time() - t) / factors
+    print(f"block LU, {nr} x {nt} section: solve {ts * 1e6:.1f} us, factorisation {tf * 1e6:.0f} us "
+          f"(CPU time per call; max |x - dense| / max |b| = {err:.1e})")
+
+
 if __name__ == "__main__":
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
     t0 = time.perf_counter()
@@ -45,6 +80,7 @@ if __name__ == "__main__":
     m = PipeMesh.build(D, 4.0, "periodic", radial_cells=4, azimuthal_cells=8)
     m.locate(0.1, 0.0, 0.0)
     print(f"cold start (import + compile/cache load of locate): {time.perf_counter() - t0:.2f} s")
+    block_lu()
     for nr, nt in ((20, 20), (20, 40)):
         run("periodic", 1, nr, nt, repeats=4)
         run("developing", 400, nr, nt)
