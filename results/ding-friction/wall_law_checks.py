@@ -57,7 +57,7 @@ def main(variant="base"):
     ub = W.schneiderbauer_slip_ratio(st.us[w], st.theta[w], W.schneiderbauer_mu0(P.e_sw, P.mu_w, P.beta0))
     f_gas = np.sum(s.hg * st.ug[w] * arc)
     f_sol = np.sum(s.hs * st.us[w] * arc)
-    weight = np.sum(a * A) * (pb.rho_s - pb.rho_g) * 9.80665
+    weight = np.sum(a * A) * (pb.rho_s - pb.rho_g) * S.G_ACC  # submerged weight per unit length [N/m]
     coll_stress = eta_w * a[w] * pb.rho_s * c["g0"][w] * st.theta[w]
     print(f"{variant}: converged {ok} after {st.iteration} iterations; dp over 2.4 m {st.G * 2.4 / 1e3:.3f} kPa; "
           f"G A {st.G * s.Atot:.4f} N/m = gas wall {f_gas:.4f} + solids wall {f_sol:.4f}")
