@@ -113,7 +113,8 @@ PARTICLE_SECTIONS = ("particles", "walls", "physics")
 PARTICLE_NUMERICS = ("parcels", "parcels_start", "average_passes", "step_rule", "relaxation",
                      "max_passes", "gas_iterations_per_pass", "step_factor", "batch_size",
                      "batches_per_superbatch", "coupling_tolerance", "residence_cap",
-                     "mirror_symmetry", "gas_station_retries", "gas_tolerance_early")
+                     "mirror_symmetry", "gas_station_retries", "gas_tolerance_early",
+                     "drag_implicit_weight")
 
 
 def _case_lines(case: Case) -> list[str]:

@@ -959,7 +959,7 @@ class CouplingLoop:
                "k": (1 - alpha) * prev["k"] + alpha * comp["k"],
                "k_ref": self.gas.k.copy(), "eps_ref": self.gas.epsilon.copy()}
         if comp.get("drag") is not None:
-            new["drag"] = alpha * comp["drag"]
+            new["drag"] = self.case.numerics.drag_implicit_weight * alpha * comp["drag"]
             new["u_ref"] = np.stack([self.gas.ux, self.gas.uy, self.gas.uz])
         residual = math.nan
         if self.sources is not None:

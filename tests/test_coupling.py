@@ -301,6 +301,26 @@ def test_the_relaxed_momentum_source_is_kept_as_applied_in_the_new_gas():
     # (that the linearised source keeps the explicit one's solution: tests/test_rans_pipe_flow.py)
 
 
+def test_the_drag_implicit_weight_scales_the_linearised_part_only():
+    """numerics.drag_implicit_weight = w: the gas solve gets w α β_pass as the implicit drag;
+    the blend of the explicit sources is unchanged, and the source kept after the solve is
+    the one applied in the new gas with that coefficient."""
+    loop = CouplingLoop(small_case(**{"numerics.drag_implicit_weight": 0.6}))
+    loop.step()
+    np.testing.assert_allclose(loop.sources["drag"], 0.6 * 0.3 * loop.last_sample.drag_coefficient,
+                               rtol=1e-12)
+    held = {k: v.copy() for k, v in loop.sources.items()}
+    loop.step()
+    s2 = loop.last_sample
+    mom2 = np.stack([s2.momentum_source(c) for c in range(3)])
+    drag = 0.6 * 0.3 * s2.drag_coefficient
+    np.testing.assert_allclose(loop.sources["drag"], drag, rtol=1e-12)
+    u_new = np.stack([loop.gas.ux, loop.gas.uy, loop.gas.uz])
+    applied = 0.7 * held["momentum"] + 0.3 * mom2 + drag * (held["u_ref"] - u_new)
+    np.testing.assert_allclose(loop.sources["momentum"], applied, rtol=1e-12, atol=1e-12 * np.abs(applied).max())
+    assert loop.case.to_attrs()["numerics.drag_implicit_weight"] == 0.6
+
+
 def test_seen_energy_of_tracers_matches_the_gas_k_in_the_core():
     """physics.k_source_scaling = "seen-energy" rescales S_k by k/k_seen: for tracers in fully
     developed flow the Langevin fluctuations they see carry the local k (factor ~ 1)."""
