@@ -190,15 +190,15 @@ RESULT_CASES = {
 @pytest.mark.parametrize("folder", sorted(RESULT_CASES))
 def test_committed_records_belong_to_the_shipped_cases(folder):
     """The run records in results/ (written before physics.partner_correlation,
-    physics.partner_momentum, numerics.mirror_symmetry and physics.langevin_drift_form
-    existed) are the records of the
+    physics.partner_momentum, numerics.mirror_symmetry, physics.langevin_drift_form and
+    numerics.drag_implicit_weight existed) are the records of the
     study cases with those keys at their earlier behaviour (config.LATER_KEYS), so --resume
     on a fresh clone reports them, not re-runs; the key at another value is another case —
     today's defaults, mirror-symmetric sampling and the returned partner momentum, included:
     those cases are re-run."""
     found = 0
     for name, today in RESULT_CASES[folder]():
-        case = today.replace(numerics={"mirror_symmetry": False},
+        case = today.replace(numerics={"mirror_symmetry": False, "drag_implicit_weight": 1.0},
                              physics={"partner_momentum": "discarded", "langevin_drift_form": "particle"})
         rec = ROOT / "results" / folder / f"{name}.record.json"
         if rec.is_file() and today.particles is not None:
@@ -266,13 +266,16 @@ def test_scene_case_files_match_the_issue_table():
         assert case.particles.mass_loading == pytest.approx(2.2 * f)
         assert case.gas.bulk_velocity == 10.0 and case.particles.density == 1020.0
         assert case.pipe.sections == (3.56,)
-        # everything else is the base case's, but the pass limits of g and h (their slow drift at 4 eta0)
+        # everything else is the base case's, but the pass limits of g and h and the weight of
+        # their linearised drag (their slow drift at 4 eta0)
         assert case.numerics.max_passes == {"g": 80, "h": 160}.get(s, base.numerics.max_passes)
+        assert case.numerics.drag_implicit_weight == (0.6 if s in "gh" else 1.0)
         assert case.replace(name=base.name, description=base.description,
                             particles={"diameter": 200e-6, "mass_loading": 2.2},
                             walls={"roughness_angle_std_deg": 1.5}, physics={"coupling": "four-way"},
                             pipe={"reference_data": base.pipe.reference_data},
-                            numerics={"max_passes": base.numerics.max_passes}) == base
+                            numerics={"max_passes": base.numerics.max_passes,
+                                      "drag_implicit_weight": base.numerics.drag_implicit_weight}) == base
 
 
 def test_settings_name_the_numerics_that_differ_from_the_first_run():
@@ -281,7 +284,8 @@ def test_settings_name_the_numerics_that_differ_from_the_first_run():
     a, g, h = (Case.from_toml(CASES_DIR / "scenes" / f"scene_{s}.toml") for s in "agh")
     text = studies._settings_text([a, g, h], False)
     assert "at most 40 passes" in text
-    assert "differing in the others: scene_g max_passes 80; scene_h max_passes 160" in text
+    assert ("differing in the others: scene_g max_passes 80, drag_implicit_weight 0.6; "
+            "scene_h max_passes 160, drag_implicit_weight 0.6") in text
     assert "the others' are the same" in studies._settings_text([a, a.replace(name="x")], False)
     assert studies._settings_text([a], False).startswith("Numerics of the run: 400 axial")
     fine = a.replace(name="fine", numerics={"axial_cells": 800, "step_factor": 0.25})
