@@ -628,13 +628,13 @@ class NumericsConfig(_Section):
         Residence time after which a parcel is stopped and counted as stuck [s], > 0
         (default 50 pipe.length / gas.bulk_velocity).
     drag_implicit_weight : float
-        Weight w of the linearised drag [1], in [0.5, 1] (default 1): the pass's part of the
+        Weight w of the linearised drag [1], in (0.5, 1] (default 1): the pass's part of the
         relaxed momentum source is applied as α S_pass + w α β (U_ref − U), −w α β U implicit
         (docs/numerics.md, "Relaxation of the sources"). The converged state does not depend on
         it (U = U_ref there). Per pass, a mode that the particles follow (β_eff ≪ β) contracts
-        by about 1 − β_eff/(w β) where the drag dominates the gas's own transport, so a smaller
-        w shortens the slow approach of the dense 50 µm scenes; a stiff mode (β_eff = β)
-        contracts by −(1 − w)/w there, which is why w stays at or above 0.5.
+        by about 1 − β_eff/(w β) where the drag dominates the gas's own transport (w α g β ≫ 1),
+        so a smaller w shortens the slow approach of the dense 50 µm scenes (by at most 1/w);
+        a stiff mode (β_eff = β) contracts by −(1 − w)/w there, which is why w stays above 0.5.
     mirror_symmetry : bool
         Average every pass's sampled particle fields (sources, statistics, wall impacts) with
         their mirror image z -> -z before they are relaxed (``particles.symmetry``): exact in
@@ -687,7 +687,7 @@ class NumericsConfig(_Section):
                                          none_label="50 pipe.length / gas.bulk_velocity")
     drag_implicit_weight: float = _param(NUMBER, "weight of the linearised drag in the relaxed "
                                          "momentum source (w in α S_pass + w α β (U_ref − U))",
-                                         default=1.0, ge=0.5, le=1.0)
+                                         default=1.0, gt=0.5, le=1.0)
     mirror_symmetry: bool = _param(BOOLEAN, "mirror-symmetric sampling", default=True)
 
     def _resolve_and_check(self):

@@ -28,7 +28,8 @@ Cycle (the reference paper's):
 Linearised drag: a pass also samples β = (1/V) Σ Ṅ m δt/τ_p, the drag coefficient by which
 its momentum source falls as the gas velocity rises (−∂S/∂U at fixed particle velocities).
 The pass's part of the blend is applied linearised about the gas U_ref it was sampled in:
-S(U) = (1 − α) S_prev + α [S_pass + β (U_ref − U)], −α β U implicitly (``rans.Sources.drag``);
+S(U) = (1 − α) S_prev + α [S_pass + w β (U_ref − U)], −w α β U implicitly (``rans.Sources.drag``;
+w = ``numerics.drag_implicit_weight``, default 1, so θ = w α below);
 after the solve the source as applied in the new gas field is what is kept (and blended
 next).  An explicit source whose β is many times the gas's own cross-section transport
 coefficients (the dense bottom layer at η = 30: up to 58×; the 0.3 m pipe at Re = 10⁶: 17×;
@@ -182,7 +183,8 @@ RETURNED_GAIN_MAX = 0.9
 #: pass in the fourfold-fluctuating cell of tests/test_symmetry_and_collision_momentum.py).
 RETURNED_GAIN_CAP = 1.5
 #: Apply the pass's part of the relaxed momentum source linearised in the gas velocity,
-#: α [S_pass + β (U_ref − U)] (module docstring, "Linearised drag"); False: the explicit
+#: α [S_pass + w β (U_ref − U)] (module docstring, "Linearised drag"; w =
+#: numerics.drag_implicit_weight); False: the explicit
 #: relaxed source.
 #: The fixed point is the same either way.
 LINEARISED_DRAG = True

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from eulag.config import Case
+from eulag.config import Case, CaseError
 from eulag.coupling import CouplingLoop
 from eulag.runs import run
 
@@ -319,6 +319,10 @@ def test_the_drag_implicit_weight_scales_the_linearised_part_only():
     applied = 0.7 * held["momentum"] + 0.3 * mom2 + drag * (held["u_ref"] - u_new)
     np.testing.assert_allclose(loop.sources["momentum"], applied, rtol=1e-12, atol=1e-12 * np.abs(applied).max())
     assert loop.case.to_attrs()["numerics.drag_implicit_weight"] == 0.6
+    assert np.abs(u_new - held["u_ref"]).max() > 1e-3  # the gas moved, so the linearised part acts
+    for bad in (0.5, 1.01):  # at 0.5 a stiff mode is no longer damped
+        with pytest.raises(CaseError, match="numerics.drag_implicit_weight"):
+            small_case(**{"numerics.drag_implicit_weight": bad})
 
 
 def test_seen_energy_of_tracers_matches_the_gas_k_in_the_core():
