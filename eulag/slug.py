@@ -92,6 +92,27 @@ _RANGES = {
 }
 
 
+def tangential_damping_limit(restitution, steps_per_contact):
+    """Largest γ_t/γ_n [-] for which the viscous tangential force of a pair contact is stable.
+
+    A pair contact's sliding velocity relaxes under −γ_t v_t with the inverse mass of the two
+    contact points, 2 (1/m + R²/I) = 7/m for solid spheres (rotation included).  The DEM step
+    (kick–drift–kick, the dashpots at the velocity predicted to the end of the step; ``dem.engine``)
+    maps the slip and its acceleration with the eigenvalues λ² − (1 − 3f/2) λ − f/2 = 0, f = dt γ_t
+    7/m; one of them reaches −1 at f = 1, beyond which the slip grows from step to step (bounded
+    only by the Coulomb cap: chatter instead of sticking).  With dt = t_c/N (t_c the pair's contact
+    time, γ_n = 2ζ sqrt(k m/2)), f = 7π ζ r / (N sqrt(1 − ζ²)), r = γ_t/γ_n; the limit is r = 1/that
+    (6.18 at e = 0.5, N = 30; tests/test_dem_contacts.py checks it on a pair).  A grain with
+    several contacts has less margin.  Returns inf for e = 1 (no dashpot).
+    """
+    from dem.contacts import damping_ratio
+
+    z = damping_ratio(restitution)
+    if z == 0.0:
+        return math.inf
+    return steps_per_contact * math.sqrt(1.0 - z * z) / (7.0 * math.pi * z)
+
+
 def _bad(sec, key, val, allowed):
     return ValueError(f"{sec}.{key} = {val!r}: allowed {allowed}")
 
@@ -151,6 +172,12 @@ def validate_slug_case(case: dict) -> dict:
         raise _bad("numerics", "gas_dt_s", n["gas_dt_s"], f"<= numerics.output_interval_s ({n['output_interval_s']})")
     if n["output_interval_s"] > n["end_time_s"]:
         raise _bad("numerics", "output_interval_s", n["output_interval_s"], "<= numerics.end_time_s")
+    limit = tangential_damping_limit(gr["restitution"], n["steps_per_contact"])
+    if gr["tangential_damping_ratio"] >= limit:
+        raise _bad("grains", "tangential_damping_ratio", gr["tangential_damping_ratio"],
+                   f"< {limit:.3g} at grains.restitution = {gr['restitution']} and numerics.steps_per_contact = "
+                   f"{n['steps_per_contact']} (above it the viscous tangential force of a pair contact is "
+                   f"unstable in the DEM step)")
     from dem.engine import SKIN
 
     shortest = 3 * (1 + SKIN) * gr["diameter_m"]  # three cells of the neighbour search

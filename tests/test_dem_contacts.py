@@ -102,6 +102,28 @@ def test_sliding_grain_decelerates_at_mu_g_and_rolls_at_five_sevenths():
     assert g.vel[0, 0] + g.omg[0, 1] * (-r) == pytest.approx(0.0, abs=1e-3 * v0)
 
 
+@pytest.mark.parametrize("fraction,grows", [(0.9, False), (1.1, True)])
+def test_viscous_tangential_force_stable_below_the_stated_limit(fraction, grows):
+    """The kick–drift–kick step's eigenvalue analysis (eulag.slug.tangential_damping_limit) puts the
+    stability limit of the viscous tangential force of a pair at dt γ_t 7/m = 1: below it a small
+    slip decays during the contact, above it the slip grows step by step."""
+    from eulag.slug import tangential_damping_limit
+
+    r = 0.5 * D
+    m = ContactModel(D, RHO, K, E, MU, tangential_ratio=fraction * tangential_damping_limit(E, STEPS_PER_CONTACT))
+    dt = m.t_contact / STEPS_PER_CONTACT
+    s0 = 1e-9  # small enough for the viscous branch throughout (μ F_n ≫ γ_t |v_t|)
+    g = Grains()
+    g.append(np.array([[-r, 0, 0], [r + 1e-9, 0, 0]]), np.array([[0.005, s0 / 2, 0], [-0.005, -s0 / 2, 0]]),
+             np.array([FREE, FREE], dtype=np.int8), np.arange(2))
+    slip = []
+    for _ in range(20):
+        _run(g, m, 1, dt)
+        assert g.pos[1, 0] - g.pos[0, 0] < D  # still in contact (the contact lasts 30 steps)
+        slip.append(abs(g.vel[0, 1] + r * g.omg[0, 2] - g.vel[1, 1] + r * g.omg[1, 2]))
+    assert (slip[19] > slip[9]) == grows
+
+
 def test_contact_force_antisymmetric_bitwise():
     rng = np.random.default_rng(1)
     for _ in range(100):
