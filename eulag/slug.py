@@ -92,8 +92,15 @@ _RANGES = {
 }
 
 
-def tangential_damping_limit(restitution, steps_per_contact):
-    """Largest γ_t/γ_n [-] for which the viscous tangential force of a pair contact is stable.
+#: Largest eigenvalue of the tangential damping of a packing over a single pair's (7 γ_t/m), with every
+#: contact sticking: the filled horizontal tube of the 22.5 s run at t = 13.25 s (3,056 grains;
+#: ``python results/strauss/tangential_stability.py``; two grains on the wall 1.47, a chain of 8 on
+#: the wall 1.95).
+TANGENTIAL_PACKING_FACTOR = 3.55
+
+
+def tangential_damping_pair_limit(restitution, steps_per_contact):
+    """γ_t/γ_n [-] at which the viscous tangential force of a single pair contact turns unstable.
 
     A pair contact's sliding velocity relaxes under −γ_t v_t with the inverse mass of the two
     contact points, 2 (1/m + R²/I) = 7/m for solid spheres (rotation included).  The DEM step
@@ -102,8 +109,8 @@ def tangential_damping_limit(restitution, steps_per_contact):
     7/m; one of them reaches −1 at f = 1, beyond which the slip grows from step to step (bounded
     only by the Coulomb cap: chatter instead of sticking).  With dt = t_c/N (t_c the pair's contact
     time, γ_n = 2ζ sqrt(k m/2)), f = 7π ζ r / (N sqrt(1 − ζ²)), r = γ_t/γ_n; the limit is r = 1/that
-    (6.18 at e = 0.5, N = 30; tests/test_dem_contacts.py checks it on a pair).  A grain with
-    several contacts has less margin.  Returns inf for e = 1 (no dashpot).
+    (6.18 at e = 0.5, N = 30; tests/test_dem_contacts.py checks it on a pair).  Returns inf for
+    e = 1 (no dashpot).
     """
     from dem.contacts import damping_ratio
 
@@ -111,6 +118,17 @@ def tangential_damping_limit(restitution, steps_per_contact):
     if z == 0.0:
         return math.inf
     return steps_per_contact * math.sqrt(1.0 - z * z) / (7.0 * math.pi * z)
+
+
+def tangential_damping_limit(restitution, steps_per_contact):
+    """Largest γ_t/γ_n [-] a case may set: the pair limit over ``TANGENTIAL_PACKING_FACTOR``.
+
+    Grains with several contacts have less margin than a pair: the step is stable while dt λ_max < 1,
+    λ_max the largest eigenvalue of the tangential damping of all sticking contacts, 3.55 times a
+    pair's in the filled tube.  1.74 at e = 0.5 and 30 steps per contact (the default γ_t = γ_n uses
+    0.57 of it); the limit grows with numerics.steps_per_contact.
+    """
+    return tangential_damping_pair_limit(restitution, steps_per_contact) / TANGENTIAL_PACKING_FACTOR
 
 
 def _bad(sec, key, val, allowed):
@@ -176,8 +194,8 @@ def validate_slug_case(case: dict) -> dict:
     if gr["tangential_damping_ratio"] >= limit:
         raise _bad("grains", "tangential_damping_ratio", gr["tangential_damping_ratio"],
                    f"< {limit:.3g} at grains.restitution = {gr['restitution']} and numerics.steps_per_contact = "
-                   f"{n['steps_per_contact']} (above it the viscous tangential force of a pair contact is "
-                   f"unstable in the DEM step)")
+                   f"{n['steps_per_contact']} (above it the viscous tangential force of a packing is unstable "
+                   f"in the DEM step; the limit grows with numerics.steps_per_contact)")
     from dem.engine import SKIN
 
     shortest = 3 * (1 + SKIN) * gr["diameter_m"]  # three cells of the neighbour search

@@ -104,13 +104,13 @@ def test_sliding_grain_decelerates_at_mu_g_and_rolls_at_five_sevenths():
 
 @pytest.mark.parametrize("fraction,grows", [(0.9, False), (1.1, True)])
 def test_viscous_tangential_force_stable_below_the_stated_limit(fraction, grows):
-    """The kick–drift–kick step's eigenvalue analysis (eulag.slug.tangential_damping_limit) puts the
+    """The kick–drift–kick step's eigenvalue analysis (eulag.slug.tangential_damping_pair_limit) puts the
     stability limit of the viscous tangential force of a pair at dt γ_t 7/m = 1: below it a small
     slip decays during the contact, above it the slip grows step by step."""
-    from eulag.slug import tangential_damping_limit
+    from eulag.slug import tangential_damping_pair_limit
 
     r = 0.5 * D
-    m = ContactModel(D, RHO, K, E, MU, tangential_ratio=fraction * tangential_damping_limit(E, STEPS_PER_CONTACT))
+    m = ContactModel(D, RHO, K, E, MU, tangential_ratio=fraction * tangential_damping_pair_limit(E, STEPS_PER_CONTACT))
     dt = m.t_contact / STEPS_PER_CONTACT
     s0 = 1e-9  # small enough for the viscous branch throughout (μ F_n ≫ γ_t |v_t|)
     g = Grains()
@@ -122,6 +122,46 @@ def test_viscous_tangential_force_stable_below_the_stated_limit(fraction, grows)
         assert g.pos[1, 0] - g.pos[0, 0] < D  # still in contact (the contact lasts 30 steps)
         slip.append(abs(g.vel[0, 1] + r * g.omg[0, 2] - g.vel[1, 1] + r * g.omg[1, 2]))
     assert (slip[19] > slip[9]) == grows
+
+
+@pytest.mark.parametrize("fraction,grows", [(0.9, False), (1.1, True)])
+def test_packing_limit_of_the_viscous_tangential_force(fraction, grows):
+    """Two grains pressed by a gas force against an end plate on the tube bottom: the step is
+    stable below the pair limit divided by the configuration's λ_max / (7 γ_t/m)
+    (dem.stability.damping_factor, an eigenvalue computation independent of the step) and not
+    above it: a 1e-9 m/s perturbation decays, or grows step by step against an unperturbed copy."""
+    from dem.stability import damping_factor
+    from eulag.slug import tangential_damping_pair_limit
+
+    r, x0, nc = 0.5 * D, -0.009, 2
+    pos = np.array([[x0 + r + k * D * (1 - 1e-3), -(RT - r) + 1e-7, 0.0] for k in range(nc)])
+    m = ContactModel(D, RHO, K, E, 1e6)  # μ large: every contact stays in the viscous branch
+    dt = m.t_contact / STEPS_PER_CONTACT
+    g = Grains()
+    g.append(pos, np.zeros_like(pos), np.full(nc, FREE, np.int8), np.arange(nc))
+    grid = CellGrid(-0.01, 0.01, RT, D)
+    gas = np.zeros((nc, 3))
+    gas[:, 0] = -5 * m.mass * 9.81
+    grav = np.array([0.0, -9.81, 0.0])
+    dem_step(g, m, grid, gas, grav, dt, 0.0, x0, {}, nsteps=3000)  # settle against the plate
+    factor = damping_factor(g.pos[:nc], D, RT, plate_x=x0)
+    assert 1.2 < factor < 2.5  # pair, wall and plate contacts together
+    ratio = fraction * tangential_damping_pair_limit(E, STEPS_PER_CONTACT) / factor
+    m.gt_pp, m.gt_pw = ratio * m.gn_pp, ratio * m.gn_pw
+    ref = Grains.from_state(g.state())
+    rng = np.random.default_rng(0)
+    g.vel[:nc] += 1e-9 * rng.standard_normal((nc, 3))
+    g.omg[:nc] += 1e-9 / r * rng.standard_normal((nc, 3))
+
+    def gap():
+        dv, dw = g.vel[:nc] - ref.vel[:nc], g.omg[:nc] - ref.omg[:nc]
+        return math.sqrt((dv ** 2).sum() + r * r * (dw ** 2).sum())
+
+    start, w1, w2 = gap(), {}, {}
+    for _ in range(4):
+        dem_step(g, m, grid, gas, grav, dt, 0.0, x0, w1, nsteps=25)
+        dem_step(ref, m, grid, gas, grav, dt, 0.0, x0, w2, nsteps=25)
+    assert (gap() > 10 * start) == grows and (gap() < start) == (not grows)
 
 
 def test_contact_force_antisymmetric_bitwise():

@@ -75,7 +75,7 @@ def test_packaged_cases_validate(name):
     ("numerics", "cells_x", 2.5, "numerics.cells_x = 2.5: allowed an integer"),
     ("tube", "orientation", "inclined", "tube.orientation = 'inclined': allowed"),
     ("feed", "colour", 1, "feed.colour = 1: allowed keys"),
-    ("grains", "tangential_damping_ratio", 7.0, "grains.tangential_damping_ratio = 7.0: allowed < 6.18 at"),
+    ("grains", "tangential_damping_ratio", 2.0, "grains.tangential_damping_ratio = 2.0: allowed < 1.74 at"),
 ])
 def test_validation_one_line_errors(section, key, value, msg):
     case = _case("strauss_horizontal")
