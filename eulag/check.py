@@ -114,7 +114,7 @@ PARTICLE_NUMERICS = ("parcels", "parcels_start", "average_passes", "step_rule", 
                      "max_passes", "gas_iterations_per_pass", "step_factor", "batch_size",
                      "batches_per_superbatch", "coupling_tolerance", "residence_cap",
                      "mirror_symmetry", "gas_station_retries", "gas_tolerance_early",
-                     "drag_implicit_weight")
+                     "drag_implicit_weight", "residual_noise")
 
 
 def _case_lines(case: Case) -> list[str]:

@@ -635,6 +635,14 @@ class NumericsConfig(_Section):
         by about 1 − β_eff/(w β) where the drag dominates the gas's own transport (w α g β ≫ 1),
         so a smaller w shortens the slow approach of the dense 50 µm scenes (by at most 1/w);
         a stiff mode (β_eff = β) contracts by −(1 − w)/w there, which is why w stays above 0.5.
+    residual_noise : str
+        The noise each cell's change of the relaxed sources is measured against in the coupling
+        residual (default "batch"): "batch", α sqrt(2/(2 − α)) times the batch standard error of
+        the pass's source, at least 1 % of the RMS source; "batch-visits", also at least
+        α sqrt(2/(2 − α)) |S| / sqrt(n + 1), S the cell's relaxed source before the pass and n
+        its visits (particle segments) in the pass: the sampling noise of a source estimated from
+        n visits, which the batch spread misses where few parcels pass (a cell the particles have
+        left, whose source then decays by α per pass). docs/numerics.md, "The residual".
     mirror_symmetry : bool
         Average every pass's sampled particle fields (sources, statistics, wall impacts) with
         their mirror image z -> -z before they are relaxed (``particles.symmetry``): exact in
@@ -688,6 +696,10 @@ class NumericsConfig(_Section):
     drag_implicit_weight: float = _param(NUMBER, "weight of the linearised drag in the relaxed "
                                          "momentum source (w in α S_pass + w α β (U_ref − U))",
                                          default=1.0, gt=0.5, le=1.0)
+    residual_noise: str = _param(STRING, "noise of a cell's source change in the coupling residual: "
+                                 "the batch standard error (floor 1 % of the RMS source), or also the "
+                                 "sampling noise of the cell's visits", default="batch",
+                                 choices=("batch", "batch-visits"))
     mirror_symmetry: bool = _param(BOOLEAN, "mirror-symmetric sampling", default=True)
 
     def _resolve_and_check(self):
@@ -757,7 +769,8 @@ LATER_KEYS: dict[str, Any] = {"physics.partner_correlation": "particle",
                                "numerics.mirror_symmetry": "false",
                                "numerics.gas_station_retries": "always",
                                "numerics.gas_tolerance_early": "numerics.gas_tolerance",
-                               "numerics.drag_implicit_weight": 1.0}
+                               "numerics.drag_implicit_weight": 1.0,
+                               "numerics.residual_noise": "batch"}
 
 
 def comparable_attrs(attrs: dict) -> dict:

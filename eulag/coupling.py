@@ -73,7 +73,9 @@ to ~2 again (docs/history.md).
 Convergence ("no longer changing beyond noise"): per cell the change of the relaxed sources,
 ΔS = α (S_pass − S_used_prev), is compared with its own statistical noise
 α · se(S_pass) · sqrt(2/(2 − α)) (se from the batch spread; the relaxed history adds the
-sqrt term), with a floor of 1 % of the RMS source for poorly sampled cells; the residual of a
+sqrt term), with a floor of 1 % of the RMS source for poorly sampled cells (and, with
+``numerics.residual_noise = "batch-visits"``, of α sqrt(2/(2 − α)) |S_used| / sqrt(n + 1), the
+sampling noise of a cell visited n times in the pass); the residual of a
 pass is the RMS of these ratios over the cells and the momentum and k sources (≈ 1 once the
 changes are pure noise).  Converged when the residual is below ``numerics.coupling_tolerance``
 and, over the last three passes, the section-mean pressure gradient changed so little that
@@ -934,7 +936,7 @@ class CouplingLoop:
             se_k = se_k * scale
         return {"momentum": mom, "k": sk, "drag": sample.drag_coefficient if LINEARISED_DRAG else None,
                 "se_momentum": np.stack([sample.momentum_source_stderr(c) for c in range(3)]),
-                "se_k": se_k}
+                "se_k": se_k, "visits": sample.visits}
 
     def _seen_energy_scale(self, sample):
         """k / k_seen per cell (physics.k_source_scaling = "seen-energy"); 1 where the cell is
@@ -966,12 +968,15 @@ class CouplingLoop:
         residual = math.nan
         if self.sources is not None:
             fac = alpha * math.sqrt(2.0 / (2.0 - alpha))
+            visits_floor = self.case.numerics.residual_noise == "batch-visits"
             ratios = []
-            for d, se in ((new["momentum"] - prev["momentum"], comp["se_momentum"]),
-                          (new["k"] - prev["k"], comp["se_k"])):
+            for d, se, before in ((new["momentum"] - prev["momentum"], comp["se_momentum"], prev["momentum"]),
+                                  (new["k"] - prev["k"], comp["se_k"], prev["k"])):
                 scale = np.sqrt(np.mean(new["momentum"] ** 2)) if d.ndim == 4 else np.sqrt(np.mean(new["k"] ** 2))
                 noise = np.where(np.isfinite(se), fac * se, 0.0)
                 noise = np.maximum(noise, _FLOOR * scale + 1e-300)
+                if visits_floor:  # the sampling noise of a source estimated from n visits
+                    noise = np.maximum(noise, fac * np.abs(before) / np.sqrt(comp["visits"] + 1.0))
                 ratios.append((d / noise).ravel())
             z = np.concatenate(ratios)
             residual = float(np.sqrt(np.mean(z * z)))

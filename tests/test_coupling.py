@@ -277,6 +277,35 @@ def test_relaxation_carries_the_previous_sinks_to_the_present_turbulence():
     assert src.c_eps3 == loop.case.physics.c_eps3 and not np.any(src.epsilon)
 
 
+def test_residual_noise_of_a_cell_the_particles_left_is_its_sampling_noise():
+    """numerics.residual_noise = "batch-visits": a cell with no visits in the pass, whose relaxed
+    source S then decays by α S, counts as noise, α S / (α sqrt(2/(2 − α)) |S| / sqrt(0 + 1)) =
+    sqrt((2 − α)/2) per component, where the batch floor (1 % of the RMS source) makes it a large
+    ratio; with many visits the floor is the batch one."""
+    alpha = 0.3
+    out = {}
+    for mode in ("batch", "batch-visits"):
+        loop = CouplingLoop(small_case(**{"numerics.residual_noise": mode}))
+        loop.step()
+        prev = loop.sources
+        cell = tuple(int(v[0]) for v in np.nonzero(np.all(prev["momentum"] != 0.0, axis=0) & (prev["k"] != 0.0)))
+        # the k sinks are carried to the present k as the loop does (the relaxation test above)
+        k_now = np.where(prev["k"] < 0.0, prev["k"] * (loop.gas.k / prev["k_ref"]), prev["k"])
+        comp = {"momentum": prev["momentum"].copy(), "k": k_now,
+                "se_momentum": np.full_like(prev["momentum"], np.nan), "se_k": np.full_like(prev["k"], np.nan),
+                "visits": np.full(prev["k"].shape, 1e30)}
+        comp["momentum"][(slice(None),) + cell] = 0.0
+        comp["k"][cell] = 0.0
+        comp["visits"][cell] = 0.0
+        out[mode] = loop._relax(comp, None, alpha)[1]
+        if mode == "batch-visits":
+            n = 4 * prev["k"].size  # three momentum components and k in every cell
+            assert out[mode] == pytest.approx(math.sqrt(4 * (2 - alpha) / 2 / n), rel=1e-9)
+            comp["visits"][cell] = 1e30  # well sampled: the batch floor alone
+            assert loop._relax(comp, None, alpha)[1] == pytest.approx(out["batch"], rel=1e-12)
+    assert out["batch"] > 10 * out["batch-visits"]
+
+
 @pytest.mark.parametrize("weight", [1.0, 0.6])
 def test_the_relaxed_momentum_source_is_kept_as_applied_in_the_new_gas(weight):
     """Linearised drag: the gas solve applies S_used + β_used (U_ref − U); what the loop keeps
