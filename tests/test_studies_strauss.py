@@ -114,6 +114,12 @@ def test_an_empty_tube_and_outflow_per_feed():
     r = strauss.classify_regime(_synthetic(phi, u, 40, outflow=outflow), t_min=0.5)
     assert r["regime"] == "nearly empty tube" and r["dense_share"] == 0.0
     assert r["outflow_per_feed"] == pytest.approx(1.0, rel=1e-9)
+    # a run continued from a saved state at t = 13.25 s counts its outflow from there: a window
+    # from its first record measures the outflow over 13.25 s to its end, not over 0 to its end
+    later = _synthetic(phi, u, 40, outflow=outflow)
+    later = later.assign_coords(time=later.time.values + 13.25)
+    assert strauss.classify_regime(later)["outflow_per_feed"] == pytest.approx(1.0, rel=1e-9)
+    assert strauss.classify_regime(later, t_min=13.75)["outflow_per_feed"] == pytest.approx(1.0, rel=1e-9)
     # a few dense slices at the inlet, pushed by the feed, do not make slugs: the dispersed grains
     # hold and carry most of the solids
     phi[:, :3] = 0.55

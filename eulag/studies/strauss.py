@@ -160,7 +160,10 @@ def classify_regime(ds, t_min: float = 0.0) -> dict:
 
 def _outflow_per_feed(ds, sel) -> float:
     """Grain mass leaving through the outlet over the window over the feed's mass in that time
-    (NaN: a periodic tube, no feed, or a window of one record)."""
+    (NaN: a periodic tube, no feed, or a window of one record).  The count is the outflow since
+    the run's start, one output interval before its first record (t = 0, or the time of the
+    state a continued run starts from), where the window's baseline is taken when the window
+    begins at the first record."""
     import json
 
     try:
@@ -169,6 +172,7 @@ def _outflow_per_feed(ds, sel) -> float:
             return math.nan
         mdot = c["feed"]["mass_flow_kg_h"] / 3600.0
         d, rho = c["grains"]["diameter_m"], c["grains"]["density_kg_m3"]
+        interval = float(c["numerics"]["output_interval_s"])
     except (KeyError, TypeError, ValueError):
         return math.nan
     t = np.asarray(ds["time"].values, float)
@@ -177,7 +181,7 @@ def _outflow_per_feed(ds, sel) -> float:
         return math.nan
     out = np.asarray(ds["outflow_count"].values, float)
     i0 = idx[0] - 1 if idx[0] > 0 else None
-    n0, t0 = (out[i0], t[i0]) if i0 is not None else (0.0, 0.0)
+    n0, t0 = (out[i0], t[i0]) if i0 is not None else (0.0, t[0] - interval)
     m_p = rho * math.pi * d ** 3 / 6.0
     return float((out[idx[-1]] - n0) * m_p / (mdot * (t[idx[-1]] - t0)))
 
