@@ -211,7 +211,6 @@ def test_committed_records_belong_to_the_shipped_cases(folder):
         rec = ROOT / "results" / folder / f"{name}.record.json"
         if rec.is_file() and today.particles is not None and folder not in TODAYS_DEFAULTS:
             assert studies.read_record(rec, today) is None, name
-        rec = ROOT / "results" / folder / f"{name}.record.json"
         if rec.is_file():
             found += 1
             assert studies.read_record(rec, case) is not None, name

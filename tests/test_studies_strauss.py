@@ -120,6 +120,12 @@ def test_an_empty_tube_and_outflow_per_feed():
     later = later.assign_coords(time=later.time.values + 13.25)
     assert strauss.classify_regime(later)["outflow_per_feed"] == pytest.approx(1.0, rel=1e-9)
     assert strauss.classify_regime(later, t_min=13.75)["outflow_per_feed"] == pytest.approx(1.0, rel=1e-9)
+    # t_max ends a window: the feed's rate leaves for 0.5 s, then three times it
+    k = np.arange(nt) + 1
+    burst = later.assign(outflow_count=("time", rate * 0.01 * np.where(k <= 50, k, 50 + 3 * (k - 50))))
+    assert strauss.classify_regime(burst, t_max=13.75)["outflow_per_feed"] == pytest.approx(1.0, rel=1e-9)
+    assert strauss.classify_regime(burst, t_min=13.76)["outflow_per_feed"] == pytest.approx(3.0, rel=1e-9)
+    assert strauss.classify_regime(burst)["outflow_per_feed"] == pytest.approx(2.0, rel=1e-9)
     # a few dense slices at the inlet, pushed by the feed, do not make slugs: the dispersed grains
     # hold and carry most of the solids
     phi[:, :3] = 0.55

@@ -29,9 +29,26 @@ def scene_cases(quick: bool, names=SCENE_NAMES, parcels: int | None = None) -> l
     return out
 
 
-def study_scenes(args, outdir: Path, t_start: float) -> int:
+def scene_metrics(ds, x: float, figdir: Path | None = None) -> dict:
+    """The scene table's numbers of a coupled dataset at the station nearest x [m] (pattern
+    metrics with their replica error bars, strength, cells, gas-maximum half, wall impacts, -dp/dx
+    and its single-phase ratio); with ``figdir``, the run's figures are written there too."""
     from eulag import analysis as an
 
+    sec = an.section(ds, x)
+    rates = an.wall_impact_rates(ds, x)
+    dp = float(sec["pressure_gradient"].values)
+    dp0 = float(sec["pressure_gradient_single_phase"].values)
+    figs = _per_run_figures(ds, x, figdir) if figdir is not None else []
+    return {**pattern_columns(ds, x),
+            "strength": an.secondary_flow_strength(ds, x), "cells": an.recirculation_cells(ds, x),
+            "half": an.gas_maximum_half(ds, x), "impact_upper": rates["upper"],
+            "impact_lower": rates["lower"], "dpdx": dp, "dpdx_ratio": dp / dp0 if dp0 else math.nan,
+            "x_station": _station(ds, x), "u0": float(_attr(ds, "gas.bulk_velocity")),
+            "figures": [str(f) for f in figs]}
+
+
+def study_scenes(args, outdir: Path, t_start: float) -> int:
     names = _select(getattr(args, "only", None), list(SCENE_NAMES), "scenes")
     try:
         cases = scene_cases(args.quick, names, getattr(args, "parcels", None))
@@ -43,18 +60,7 @@ def study_scenes(args, outdir: Path, t_start: float) -> int:
         x = case.pipe.sections[0]
 
         def extract(ds, rec, x=x):
-            u0 = float(_attr(ds, "gas.bulk_velocity"))
-            sec = an.section(ds, x)
-            rates = an.wall_impact_rates(ds, x)
-            dp = float(sec["pressure_gradient"].values)
-            dp0 = float(sec["pressure_gradient_single_phase"].values)
-            figs = _per_run_figures(ds, x, figdir)
-            return {**pattern_columns(ds, x),
-                    "strength": an.secondary_flow_strength(ds, x), "cells": an.recirculation_cells(ds, x),
-                    "half": an.gas_maximum_half(ds, x), "impact_upper": rates["upper"],
-                    "impact_lower": rates["lower"], "dpdx": dp, "dpdx_ratio": dp / dp0 if dp0 else math.nan,
-                    "x_station": _station(ds, x), "u0": u0,
-                    "figures": [str(f) for f in figs]}
+            return scene_metrics(ds, x, figdir)
 
         records.append(run_case(args, name, case, outdir, f"[scenes {i}/{len(cases)}] {name}", extract))
 
