@@ -57,7 +57,7 @@ import numpy as np
 from numba import njit, prange
 from numba.core.errors import NumbaWarning
 
-from collisions.conf import JIT_FLAGS, KERNEL_FLAGS
+from collisions.conf import JIT_FLAGS, KERNEL_FLAGS, LOOP_FLAGS, inlined
 from collisions.interparticle import InterparticleOptions, make_interparticle_collision
 from collisions.random import (RNG_DRAW, RNG_PARCEL, RNG_PASS, RNG_SEED, RNG_STATE_SIZE, RNG_STREAM,
                                STREAM_COLLISION, STREAM_DISPERSION, STREAM_INJECTION, STREAM_WALL,
@@ -671,7 +671,7 @@ def make_tracker(options=PhysicsOptions()):
                             omega[0] = wsx
                             omega[1] = wsy
                             omega[2] = wsz
-                        tau_step = _ADVANCE(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
+                        tau_step = _ADVANCE_CALL(pos, vel, omega, uf, fvals[F_WX:F_WX + 3], dt, prm, imp)
                         r1 = math.sqrt(pos[1] * pos[1] + pos[2] * pos[2])
                     if r1 > r_contact:
                         f = r_contact / r1
@@ -681,8 +681,8 @@ def make_tracker(options=PhysicsOptions()):
                 dxs = pos[0] - saved[0]
                 dys = pos[1] - saved[1]
                 dzs = pos[2] - saved[2]
-                nseg, end = walk_segment(saved[0], saved[1], saved[2], dxs, dys, dzs, ci, cj, ck,
-                                         x_edges, r_edges, ray_sin, ray_cos, seg_cell, seg_frac)
+                nseg, end = _WALK(saved[0], saved[1], saved[2], dxs, dys, dzs, ci, cj, ck,
+                                 x_edges, r_edges, ray_sin, ray_cos, seg_cell, seg_frac)
                 inside = 0.0
                 imp0 = imp[0]  # in locals: the stores into ``out`` below could alias the arrays
                 imp1 = imp[1]
@@ -778,8 +778,8 @@ def make_tracker(options=PhysicsOptions()):
                     if pos[0] > length:
                         pos[0] = length
                 # ---- fields at x_{n+1}; Langevin update of the fluid velocity seen
-                ni, nj, nk = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
-                                         radius, nu, dvals, cj)  # ring search from the last ring
+                ni, nj, nk = _INTERPOLATE(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
+                                          radius, nu, dvals, cj)  # ring search from the last ring
                 if langevin:
                     src = dvals  # k, eps and grad k at the new position
                     sig2n = 2.0 * src[F_K] / 3.0
@@ -939,9 +939,13 @@ def make_tracker(options=PhysicsOptions()):
             state[q, 18] = z_in
 
     # the parcel loop runs without the numba runtime's reference counting (KERNEL_FLAGS): array
-    # arguments of the many sub-kernel calls per step then cost nothing (collisions/conf.py)
-    track_parcels = njit(**KERNEL_FLAGS)(_with_globals(track_parcels, _ADVANCE=advance,
-                                                       _WALL=wall_collision, _PP=pp_collision))
+    # arguments of the sub-kernel calls then cost no reference counts; the calls made every step
+    # (motion, segment walk, field interpolation, stochastic collision) are inlined, the rare
+    # ones (injection, the wall path, the shortened step before a wall contact) stay calls
+    # (collisions/conf.py, ``inlined``); fused multiply-adds and reused reciprocals (LOOP_FLAGS)
+    track_parcels = njit(**LOOP_FLAGS)(_with_globals(
+        track_parcels, _ADVANCE=inlined(advance), _ADVANCE_CALL=advance, _WALK=inlined(walk_segment),
+        _INTERPOLATE=inlined(interpolate), _WALL=wall_collision, _PP=inlined(pp_collision)))
 
     def track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                     x_centres, tab, axis, stats, prm, out, state):
