@@ -375,3 +375,26 @@ def test_windowed_sweep_follows_the_same_trajectories():
         assert runs[0].counts == other.counts
         np.testing.assert_allclose(other.total, runs[0].total, rtol=0,
                                    atol=1e-13 * np.abs(runs[0].total).max())
+
+
+def test_loop_flags_keep_the_finiteness_checks():
+    """The parcel loop's fast-math flags (collisions.conf.LOOP_FLAGS) must leave NaN and inf
+    testable: a non-finite parcel state is counted lost by the loop's math.isfinite checks,
+    which LLVM's nnan/ninf flags would fold to True.  A division by zero gives inf/NaN under
+    the loop's numpy error model instead of raising."""
+    import math
+
+    from numba import njit
+
+    from collisions.conf import LOOP_FLAGS
+
+    @njit(**{**LOOP_FLAGS, "cache": False})
+    def finite_ratio(a, b):
+        q = a / b
+        return math.isfinite(q), q
+
+    assert finite_ratio(1.0, 4.0) == (True, 0.25)
+    ok, q = finite_ratio(1.0, 0.0)
+    assert not ok and q == math.inf
+    ok, q = finite_ratio(0.0, 0.0)
+    assert not ok and math.isnan(q)
