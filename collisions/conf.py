@@ -12,8 +12,8 @@ inlined(f)    a copy of the kernel ``f`` that numba inlines into its caller (``i
               step (the motion step, the field interpolation, the segment walk, the stochastic
               collision).  Measured reason: a call that LLVM does not inline passes every array
               argument as its expanded struct (a 4-D field table is 13 machine words), and these
-              calls took about a sixth of a step; inlined, the full-physics kernel runs 3.9
-              instead of 3.3 M parcel-steps/s per core with bit-identical results
+              calls took about a sixth of a step; inlined, the full-physics kernel runs 3.85
+              instead of 3.22 M parcel-steps/s per core with bit-identical results
               (``python -m particles.bench``).  The cost is compile time (type inference of the
               inlined body once per call site), so rare call sites (injection, the wall path)
               keep the plain call.
@@ -25,7 +25,7 @@ LOOP_FLAGS    the tracking kernel's parcel loop (with what is inlined into it): 
               (the sign of zero ignored).  Not ``nnan``/``ninf`` (the finiteness checks must
               stay), not ``reassoc`` or ``afn``.  These change results by round-off only:
               within one round-off of each operation, the same for any thread count.  Measured:
-              3.9 → 4.2 M parcel-steps/s per core.
+              3.85 → 4.1 M parcel-steps/s per core.
 """
 
 import os
