@@ -38,6 +38,7 @@ from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
 from .linalg import AndersonMixing, LaggedSparseLU
+from .operators import matvec
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -243,6 +244,16 @@ ANDERSON_DEPTH = 10
 #: plain outer iterations before the mixing starts: most stations of a march converge in a few
 #: iterations, where mixing a short history only perturbs the path
 ANDERSON_DELAY = 10
+#: an attempt whose changes repeat with a period of at most CYCLE_PERIOD_MAX iterations over
+#: CYCLE_PERIODS periods, to CYCLE_MATCH relative, ends there (_cycling); 0 lets it run to its cap
+CYCLE_PERIODS = 2
+CYCLE_PERIOD_MAX = 32
+CYCLE_MATCH = 1e-3
+#: two consecutive outer iterations (after the fourth) that change the state by more than this
+#: (relative) mean a diverging attempt (k up a factor 1e8 and more at the axis, on its way to
+#: overflow, where it would stop ~40 iterations later); the first iterations may legitimately
+#: lift a cell from the eps floor by as much
+DIVERGED_CHANGE = 1e8
 #: k-eps solves per outer iteration where the particles dominate the turbulence: the k and eps
 #: equations lag each other's ratio eps/k and mu_t (with P_k = mu_t G^2).  Where the section's
 #: particle k sink (referenced) exceeds KE_SWEEP_RATIO times its dissipation (scene h, pass 51:
@@ -557,18 +568,18 @@ class _StationSolver:
         Rz, Ry = sec.reconstruct(g, np.zeros(nwall))
         uz = lu.solve(bz + A * Rz)
         uy = lu.solve(by + A * Ry)
-        offsum = sec._sum_P @ np.abs(aPN) + sec._sum_N @ np.abs(aNP)
+        offsum = matvec(sec._sum_P, np.abs(aPN)) + matvec(sec._sum_N, np.abs(aNP))
         red = diag_m - drag_diag - offsum
         red = np.where(red > 1e-3 * diag_m, red, diag_m)
         dP = A / red
         d_f = sec.interp(dP)
         Uf = (sec.interp(uz - dP * Rz) * sec.nz + sec.interp(uy - dP * Ry) * sec.ny) + d_f * g
         flux = rho * Uf * sec.S
-        imbalance = sec.div @ flux
+        imbalance = matvec(sec.div, flux)
         if axial_part is not None:
             imbalance = imbalance + axial_part
         coef = rho * d_f * sec.S / sec.delta
-        diag_p = sec.fsum @ coef
+        diag_p = matvec(sec.fsum, coef)
         diag_p[sec.wall[0]] += diag_p.max() * 1e3  # pin the level of p' (pure Neumann problem)
         pc = self._factor["pressure"](diag_p, -coef, -coef).solve(-imbalance)
         flux = flux + coef * (pc[sec.P] - pc[sec.N])
@@ -1033,6 +1044,12 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                     it += 1
                     if it >= lo and ch < tol:
                         return st, True, it, min(r, m), cp, solver.last_change
+                    if it > 4 and not min(changes[-2], ch) <= DIVERGED_CHANGE:
+                        raise SolverDivergence(
+                            f"gas solve diverged: two outer iterations changed the state by {changes[-2]:.3g} "
+                            f"and {ch:.3g} (relative) at x = {solver.x:.4g} m (station {solver.station})")
+                    if CYCLE_PERIODS and _cycling(changes, tol):
+                        break  # a limit cycle: as if its iterations had run out
                     if accelerate and it >= ANDERSON_DELAY:
                         if mixing is None:
                             mixing = AndersonMixing(ANDERSON_DEPTH, _mixing_weight(st, solver.Ub))
@@ -1088,6 +1105,31 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
     finally:
         solver.alpha_u, solver.coupled = alpha_u, coupled
     return best[1], False, best[2], best[3], best[4], best[5]
+
+
+def _cycling(changes, tol):
+    """Whether the last outer iterations repeat themselves: for some period 2 <= p <=
+    CYCLE_PERIOD_MAX the last max(CYCLE_PERIODS p, 8) changes equal those p iterations earlier
+    to CYCLE_MATCH (relative), all above ``tol``, and vary within a period by a factor of 2 or
+    more.  The outer iteration is a deterministic map, so such an attempt is on a limit cycle
+    (k at the axis up a factor ~30 every second iteration, or the Anderson history's restarts
+    repeating every 11-12 iterations, scene h) and would only repeat it until its iterations
+    run out.  A change that stays level (a slow drift, which can end in a contraction: the
+    last resort of _march_station) is not a cycle."""
+    n = len(changes)
+    if n < 12:
+        return False
+    c = np.asarray(changes[-min(n, (CYCLE_PERIODS + 1) * CYCLE_PERIOD_MAX):])
+    if not (np.all(np.isfinite(c[-8:])) and c[-8:].min() > tol):
+        return False
+    for p in range(2, CYCLE_PERIOD_MAX + 1):
+        w = max(CYCLE_PERIODS * p, 8)
+        if w + p > c.size:
+            return False
+        now, before = c[-w:], c[-w - p:-p]
+        if np.all(np.abs(now - before) <= CYCLE_MATCH * now):
+            return bool(now.max() >= 2.0 * now.min())
+    return False
 
 
 def _still_converging(changes, chunk, tol, left):

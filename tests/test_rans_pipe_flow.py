@@ -753,3 +753,62 @@ def test_a_station_without_retries_keeps_its_first_attempt():
     _, ok, *_ = rs._march_station(s, State(), None, None, None, None, True, 1.0, (2, 20), 1e-6, [],
                                   retries=False)
     assert ok and s.calls == 3  # a divergence is retried even without retries of stalls
+
+
+def test_an_attempt_on_a_limit_cycle_ends_before_its_cap_and_a_level_stall_does_not():
+    """_march_station ends an attempt whose changes repeat with a period of 2 or more (k jumping
+    up and down at the axis: 31, 0.97, 31, ...) after a few periods instead of at its cap of
+    200 iterations; a level change (a slow drift) runs to the cap; rans.solver._cycling on
+    its own: a decaying oscillation is not a cycle, a repeated pattern of period 11 is."""
+    from rans import solver as rs
+
+    class Cycling:
+        alpha_u, coupled, last_change = 1.0, False, (1.0, 1.0)
+
+        def __init__(self, values):
+            self.values, self.calls = values, 0
+
+        def iterate(self, st, *args):
+            self.calls += 1
+            return self.values[(self.calls - 1) % len(self.values)]
+
+    class State:
+        def copy(self):
+            return State()
+
+    for values, ends_early in (([31.0, 0.97], True), ([0.5], False)):
+        s = Cycling(values)
+        _, ok, *_ = rs._march_station(s, State(), None, None, None, None, True, 1.0, (2, 200), 1e-6, [],
+                                      retries=False)
+        assert not ok
+        assert (s.calls < 20) if ends_early else (s.calls == 200)
+    assert not rs._cycling([31.0 * 0.9**i if i % 2 == 0 else 0.97 * 0.9**i for i in range(40)], 1e-6)
+    period = [18.0, 0.95, 0.78, 0.65, 0.52, 0.47, 0.39, 0.35, 0.31, 0.28, 0.72]
+    assert rs._cycling([0.7, 0.3] + period * 3, 1e-6)
+    assert not rs._cycling([0.7, 0.3] + period * 3, 1.0)  # above the tolerance only
+
+
+def test_an_attempt_whose_changes_explode_is_a_divergence():
+    """Two consecutive outer iterations that change the state by more than
+    rans.solver.DIVERGED_CHANGE (after the fourth) end the attempt as a divergence, ~40
+    iterations before the overflow would; every attempt diverging, the last one's divergence
+    is raised."""
+    from rans import solver as rs
+
+    class Exploding:
+        alpha_u, coupled, last_change = 1.0, False, (1.0, 1.0)
+        calls = 0
+
+        def iterate(self, st, *args):
+            self.calls += 1
+            return 1e9
+
+    class State:
+        def copy(self):
+            return State()
+
+    s = Exploding()
+    s.x, s.station = 0.5, 3
+    with pytest.raises(rs.SolverDivergence, match="changed the state by 1e\\+09"):
+        rs._march_station(s, State(), None, None, None, None, True, 1.0, (2, 200), 1e-6, [])
+    assert s.calls % 5 == 0 and s.calls <= 5 * 12
