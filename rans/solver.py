@@ -1035,6 +1035,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
             limit, it, changes = cap, 0, []
             at_cap = None  # the unconverged state where the iterations ran out, if iterated on
             mixing = smallest = None
+            cycled = False
             try:
                 while it < limit:
                     x_in = _pack(st) if accelerate and it + 1 >= ANDERSON_DELAY else None
@@ -1049,6 +1050,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                             f"gas solve diverged: two outer iterations changed the state by {changes[-2]:.3g} "
                             f"and {ch:.3g} (relative) at x = {solver.x:.4g} m (station {solver.station})")
                     if CYCLE_PERIODS and _cycling(changes, tol):
+                        cycled = True
                         break  # a limit cycle: as if its iterations had run out
                     if accelerate and it >= ANDERSON_DELAY:
                         if mixing is None:
@@ -1072,8 +1074,8 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                 ch, st, it, last = at_cap
             else:
                 last = solver.last_change
-                if resume is None and not accelerate and (r, m, cp) == (relax, alpha_u, coupled):
-                    resume = (st.copy(), it, cap)
+                if resume is None and not accelerate and not cycled and (r, m, cp) == (relax, alpha_u, coupled):
+                    resume = (st.copy(), it, cap)  # (a cycle would only repeat itself there)
             if accelerate:
                 # an accelerated attempt that did not converge leaves a mixed state, not an iterate:
                 # the plain attempts below start again from the upstream state

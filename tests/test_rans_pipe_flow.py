@@ -758,7 +758,8 @@ def test_a_station_without_retries_keeps_its_first_attempt():
 def test_an_attempt_on_a_limit_cycle_ends_before_its_cap_and_a_level_stall_does_not():
     """_march_station ends an attempt whose changes repeat with a period of 2 or more (k jumping
     up and down at the axis: 31, 0.97, 31, ...) after a few periods instead of at its cap of
-    200 iterations; a level change (a slow drift) runs to the cap; rans.solver._cycling on
+    200 iterations, and does not iterate it on as a last resort; a level change (a slow drift)
+    runs to the cap; rans.solver._cycling on
     its own: a decaying oscillation is not a cycle, a repeated pattern of period 11 is."""
     from rans import solver as rs
 
@@ -782,6 +783,11 @@ def test_an_attempt_on_a_limit_cycle_ends_before_its_cap_and_a_level_stall_does_
                                       retries=False)
         assert not ok
         assert (s.calls < 20) if ends_early else (s.calls == 200)
+    # with the retries every attempt cycles, and the last resort (iterating the first plain
+    # attempt on, up to 4 x 200 iterations) is not taken: it would repeat the cycle
+    s = Cycling([31.0, 0.97])
+    _, ok, *_ = rs._march_station(s, State(), None, None, None, None, True, 1.0, (2, 200), 1e-6, [])
+    assert not ok and s.calls < 150
     assert not rs._cycling([31.0 * 0.9**i if i % 2 == 0 else 0.97 * 0.9**i for i in range(40)], 1e-6)
     period = [18.0, 0.95, 0.78, 0.65, 0.52, 0.47, 0.39, 0.35, 0.31, 0.28, 0.72]
     assert rs._cycling([0.7, 0.3] + period * 3, 1e-6)
