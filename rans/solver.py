@@ -988,6 +988,10 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
        neither grows nor falls, which no reading of ``_still_converging`` can tell from a
        wandering iteration, and which neither the relaxations nor the coupled step get past.
 
+    An attempt on a limit cycle (its changes repeating with a period of 2-32 iterations:
+    ``_cycling``) ends as if its iterations had run out and is not the last resort's to iterate
+    on; two changes above DIVERGED_CHANGE end it as a divergence.
+
     ``retries=False``: a station whose attempt stalls (its iterations run out without
     divergence) is returned as it is, without the further attempts and the extension; one
     that diverges is retried as above.
