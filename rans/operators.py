@@ -204,7 +204,7 @@ class Section:
                 cN = np.maximum(np.maximum(flux, cN), 0.0)
             elif scheme != "central":
                 raise ValueError(f"scheme = {scheme!r}: allowed upwind, central, hybrid")
-        return _face_sums(self.P, self.N, cP, cN, self.n), -cP, -cN
+        return face_sums(self.P, self.N, cP, cN, self.n), -cP, -cN
 
     def radial_gradient_correction(self, phi, gamma_f):
         """Explicit (deferred-correction) source per cell [gamma_f * phi per m2, times the
@@ -250,8 +250,8 @@ class Section:
         """Cell vector (z, y) from face-normal components g (interior) and g_wall (wall faces)."""
         sz = self.S * g * self.nz
         sy = self.S * g * self.ny
-        bz = _face_sums(self.P, self.N, sz, sz, self.n)
-        by = _face_sums(self.P, self.N, sy, sy, self.n)
+        bz = face_sums(self.P, self.N, sz, sz, self.n)
+        by = face_sums(self.P, self.N, sy, sy, self.n)
         if g_wall is not None:
             bz[self.wall] += self.wall_chord * g_wall * self.wall_nz
             by[self.wall] += self.wall_chord * g_wall * self.wall_ny
@@ -290,7 +290,7 @@ def _csr_matvec(indptr, indices, data, x, y):
 
 
 @njit(cache=True)
-def _face_sums(P, N, on_P, on_N, n):
+def face_sums(P, N, on_P, on_N, n):
     """Per cell: the sum of ``on_P`` over the faces whose P is the cell, plus the sum of ``on_N``
     over those whose N is (each in face order from zero, then added: bit-identical to the
     products with the scatter matrices ``_sum_P``, ``_sum_N``)."""

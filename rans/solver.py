@@ -38,7 +38,7 @@ from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
 from .linalg import AndersonMixing, LaggedSparseLU
-from .operators import matvec
+from .operators import face_sums, matvec
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -568,7 +568,7 @@ class _StationSolver:
         Rz, Ry = sec.reconstruct(g, np.zeros(nwall))
         uz = lu.solve(bz + A * Rz)
         uy = lu.solve(by + A * Ry)
-        offsum = matvec(sec._sum_P, np.abs(aPN)) + matvec(sec._sum_N, np.abs(aNP))
+        offsum = face_sums(sec.P, sec.N, np.abs(aPN), np.abs(aNP), sec.n)
         red = diag_m - drag_diag - offsum
         red = np.where(red > 1e-3 * diag_m, red, diag_m)
         dP = A / red
