@@ -1,6 +1,6 @@
 """The speed figures of the Euler–Lagrange code, on one machine in one run.
 
-    python tests/benchmarks/bench_speed.py [--only kernel,gas,base,paper,scene] [--scene e]
+    python tests/benchmarks/bench_speed.py [--only kernel,gas,base,paper,scene] [--scene e[,f,...]]
                                            [--scene-checkpoint PATH] [--base-checkpoint PATH]
                                            [--parcels-final 240000] [--paper-axial-cells 200]
                                            [--out DIR]
@@ -19,8 +19,9 @@ Parts (each printed as it finishes, then together in one table with the machine)
 * ``paper``: the same at the paper's resolution: 200 axial × 20 × 40 = 160,000 cells (the
   reference paper's count; ``--paper-axial-cells 400`` gives the studies' 320,000),
   ``--parcels-final`` parcels in the final passes (default 240,000).
-* ``scene``: passes and wall time to convergence of a 50 µm scene (``--scene``, default e) at
-  the studies' grid with ``--parcels-final`` parcels in the final passes.
+* ``scene``: passes and wall time to convergence of secondary-flow scenes (``--scene``, one or
+  several of a–h separated by commas, default e) at the studies' grid with ``--parcels-final``
+  parcels in the final passes, one after the other.
 
 The coupled runs go through ``eulag.runs.execute`` (as ``eulag run``) after a tiny run that
 compiles the particle kernels of their physics options (reported apart). Datasets are written
@@ -41,6 +42,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 PARTS = ("kernel", "gas", "base", "paper", "scene")
+SCENES = tuple("abcdefgh")
 
 
 def _machine() -> str:
@@ -93,7 +95,7 @@ def _coupled(label: str, case, out: Path) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", default=",".join(PARTS), help=f"comma-separated parts of {', '.join(PARTS)}")
-    ap.add_argument("--scene", default="e", choices=("e", "f", "g", "h"), help="the 50 µm scene of 'scene'")
+    ap.add_argument("--scene", default="e", help="the scenes of 'scene': one or several of a-h, comma-separated")
     ap.add_argument("--scene-checkpoint", type=Path, help="scene h coupling checkpoint for 'gas'")
     ap.add_argument("--base-checkpoint", type=Path, help="base-case coupling checkpoint for 'gas'")
     ap.add_argument("--parcels-final", type=int, default=240_000, help="final-pass parcels of 'paper' and 'scene'")
@@ -106,6 +108,12 @@ def main(argv=None) -> int:
     if bad or not parts:
         print(f"bench_speed: error: --only {a.only}: unknown part {', '.join(bad) or '(none)'}; "
               f"allowed: {', '.join(PARTS)}", file=sys.stderr)
+        return 2
+    scenes = [x.strip() for x in a.scene.split(",") if x.strip()]
+    bad = [x for x in scenes if x not in SCENES]
+    if bad or not scenes:
+        print(f"bench_speed: error: --scene {a.scene}: unknown scene {', '.join(bad) or '(none)'}; "
+              f"allowed: {', '.join(SCENES)}", file=sys.stderr)
         return 2
     from eulag.config import CASES_DIR, Case
 
@@ -134,11 +142,11 @@ def main(argv=None) -> int:
                                        "parcels": a.parcels_final,
                                        "parcels_start": min(base.numerics.parcels_start, a.parcels_final)})
         rows.append(_coupled("base case, paper resolution", paper, out))
-    if "scene" in parts:
-        scene = Case.from_toml(CASES_DIR / "scenes" / f"scene_{a.scene}.toml")
+    for name in (scenes if "scene" in parts else []):
+        scene = Case.from_toml(CASES_DIR / "scenes" / f"scene_{name}.toml")
         scene = scene.replace(numerics={"parcels": a.parcels_final,
                                         "parcels_start": min(scene.numerics.parcels_start, a.parcels_final)})
-        rows.append(_coupled(f"scene {a.scene}", scene, out))
+        rows.append(_coupled(f"scene {name}", scene, out))
     print("\nsummary")
     print(f"  machine: {_machine()}")
     for ln in lines:
