@@ -629,6 +629,7 @@ class CouplingLoop:
         self.window_parcels = 0
         self.final_sources = []  # each final pass's sampled momentum and k sources
         self.replicas = []  # gas (ux, uy, uz) at the first station, solved on each final pass's sources
+        self.replica_pressure_gradients = []  # the section-mean -dp/dx(x) of those solves
         self.gas_relaxed = None
         self.gas_field_note = "last relaxed iterate of the coupling loop"
         self.last_sample = None
@@ -895,8 +896,10 @@ class CouplingLoop:
         """The gas field of the dataset: one solve with the sources of the averaged final passes
         (the particle statistics of the dataset are that average too), applied as sampled,
         without relaxation; and, for error bars of the section's pattern, one solve on each final
-        pass's own sources (``self.replicas``: the gas velocities at the first reported station).
-        The relaxed iterate the loop ended with is kept as ``self.gas_relaxed``."""
+        pass's own sources (``self.replicas``: the gas velocities at the first reported station;
+        ``self.replica_pressure_gradients``: the section-mean −dp/dx along the pipe, whose spread
+        is the error bar of the averaged solve's −dp/dx, and whose order shows a drift over the
+        final passes). The relaxed iterate the loop ended with is kept as ``self.gas_relaxed``."""
         avg = self._computed_sources(self.sample())
         self.gas_relaxed = self.gas
 
@@ -915,12 +918,14 @@ class CouplingLoop:
         self.gas_field_note = "solve on the averaged sources of the final passes"
         i = int(np.argmin(np.abs(np.asarray(self.mesh.x) - self.case.pipe.sections[0])))
         self.replicas = []
+        self.replica_pressure_gradients = []
         for src in self.final_sources:
             try:
                 r = solve(src)
             except rans.SolverDivergence:
                 continue  # the replica is missing; its error bar rests on the others
             self.replicas.append(np.stack([np.asarray(r.ux)[i], np.asarray(r.uy)[i], np.asarray(r.uz)[i]]))
+            self.replica_pressure_gradients.append(np.asarray(r.pressure_gradient, dtype=float).copy())
 
     def _tell(self, text):
         if self.notify is not None:
@@ -1073,6 +1078,8 @@ class CouplingLoop:
             arrays[f"final_{i}_k"] = src["k"]
         for i, rep in enumerate(self.replicas):
             arrays[f"replica_{i}"] = rep
+        for i, dp in enumerate(self.replica_pressure_gradients):
+            arrays[f"replica_dpdx_{i}"] = dp
         meta = {"version": CHECKPOINT_VERSION, "case": self.case.to_attrs(), "pass_index": self.pass_index,
                 "phase": self.phase, "final_left": self.final_left, "converged": self.converged,
                 "finished": self.finished, "alpha": self.alpha, "alpha_changed_at": self.alpha_changed_at,
@@ -1155,6 +1162,10 @@ class CouplingLoop:
         i = 0
         while f"replica_{i}" in data:
             self.replicas.append(data[f"replica_{i}"])
+            i += 1
+        i = 0
+        while f"replica_dpdx_{i}" in data:
+            self.replica_pressure_gradients.append(data[f"replica_dpdx_{i}"])
             i += 1
         self.criteria = [Criterion(**c) for c in meta.get("criteria", [])]
         self.drift_told_at = meta.get("drift_told_at", -1)

@@ -367,6 +367,12 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
                 f"gas velocity {comp} at x = {case.pipe.sections[0]:g} m (the nearest station), solved on the "
                 "sources of one final pass alone: the replicas behind the pattern metrics' error bars",
                 coordinates="y z")
+    if loop.replica_pressure_gradients:
+        ds["replica_pressure_gradient"] = _var(
+            ("replica", "x"), np.stack(loop.replica_pressure_gradients), "Pa m-1",
+            "section-mean -dp/dx solved on the sources of one final pass alone, in the order of the "
+            "final passes: its spread is the error bar of pressure_gradient, its trend a drift "
+            "over the final passes")
     ds["time_gas_solve_pass"] = _var(it, h["time_gas"], "s", "wall-clock time of the pass's gas solve")
     ds["time_lagrangian_pass"] = _var(it, h["time_particles"], "s", "wall-clock time of the Lagrangian pass")
 

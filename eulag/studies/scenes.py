@@ -40,10 +40,14 @@ def scene_metrics(ds, x: float, figdir: Path | None = None) -> dict:
     dp = float(sec["pressure_gradient"].values)
     dp0 = float(sec["pressure_gradient_single_phase"].values)
     figs = _per_run_figures(ds, x, figdir) if figdir is not None else []
+    # -dp/dx at the station solved on each final pass's sources alone (in their order)
+    reps = ([float(v) for v in ds["replica_pressure_gradient"].sel(x=x, method="nearest").values]
+            if "replica_pressure_gradient" in ds else [])
     return {**pattern_columns(ds, x),
             "strength": an.secondary_flow_strength(ds, x), "cells": an.recirculation_cells(ds, x),
             "half": an.gas_maximum_half(ds, x), "impact_upper": rates["upper"],
             "impact_lower": rates["lower"], "dpdx": dp, "dpdx_ratio": dp / dp0 if dp0 else math.nan,
+            "dpdx_replicas": reps,
             "x_station": _station(ds, x), "u0": float(_attr(ds, "gas.bulk_velocity")),
             "figures": [str(f) for f in figs]}
 
