@@ -317,6 +317,7 @@ def _coupled_summary(case, loop, ds, out) -> str:
         f"  -dp/dx       {float(np.mean(ds.pressure_gradient)):.4g} Pa/m (single-phase "
         f"{float(np.mean(ds.pressure_gradient_single_phase)):.4g}); dp ratio "
         f"{float(ds.solids_pressure_drop_ratio):.4g}, lambda_Z {float(ds.additional_pressure_loss_coefficient):.4g}",
+        *_replica_pressure_gradient_line(ds),
         f"  secondary    {strength}",
         f"  parcels      {int(h.parcels[-1])} per final pass; lost {int(sum(h.lost))}, stuck {int(sum(h.stuck))}",
         *_collision_momentum_line(case, h),
@@ -327,6 +328,15 @@ def _coupled_summary(case, loop, ds, out) -> str:
         f"  written      {out}",
     ]
     return "\n".join(lines)
+
+
+def _replica_pressure_gradient_line(ds) -> list[str]:
+    """-dp/dx (mean over x) solved on each final pass's sources alone, in their order: the
+    spread behind the averaged value, and a drift the final passes still carried."""
+    if "replica_pressure_gradient" not in ds:
+        return []
+    v = ds["replica_pressure_gradient"].values.mean(axis=1)
+    return [f"               each final pass alone: {', '.join(f'{x:.4g}' for x in v)} Pa/m"]
 
 
 def _conveying_lines(case, ds) -> list[str]:

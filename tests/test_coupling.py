@@ -853,3 +853,15 @@ def test_replica_pressure_gradients_give_the_averaged_solve_an_error_bar(tmp_pat
     np.testing.assert_array_equal(first["replica_pressure_gradient"].values,
                                   again["replica_pressure_gradient"].values)
     np.testing.assert_array_equal(first["replica_pressure_gradient"].values, rep.values)
+
+
+def test_run_summary_prints_each_final_pass_pressure_gradient(tmp_path):
+    from eulag.cli import _coupled_summary
+    from eulag.runs import execute
+
+    case = small_case()
+    res = execute(case, tmp_path / "out.nc")
+    text = _coupled_summary(case, res.loop, res.dataset, tmp_path / "out.nc")
+    line = next(ln for ln in text.splitlines() if "each final pass alone" in ln)
+    means = res.dataset["replica_pressure_gradient"].values.mean(axis=1)
+    assert line.endswith(", ".join(f"{v:.4g}" for v in means) + " Pa/m"), line
