@@ -92,6 +92,17 @@ def _coupled(label: str, case, out: Path) -> dict:
     return row
 
 
+def _choices(option: str, text: str, allowed, what: str) -> list[str] | None:
+    """The comma-separated items of ``text``; None (after one line on stderr) if any is not allowed."""
+    items = [x.strip() for x in text.split(",") if x.strip()]
+    bad = [x for x in items if x not in allowed]
+    if bad or not items:
+        print(f"bench_speed: error: {option} {text}: unknown {what} {', '.join(bad) or '(none)'}; "
+              f"allowed: {', '.join(allowed)}", file=sys.stderr)
+        return None
+    return items
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", default=",".join(PARTS), help=f"comma-separated parts of {', '.join(PARTS)}")
@@ -103,17 +114,9 @@ def main(argv=None) -> int:
                     help="axial cells of 'paper' (x 20 x 40; 200: the paper's 160,000 cells)")
     ap.add_argument("--out", type=Path, help="folder for the datasets (default: a temporary folder)")
     a = ap.parse_args(argv)
-    parts = [p.strip() for p in a.only.split(",") if p.strip()]
-    bad = [p for p in parts if p not in PARTS]
-    if bad or not parts:
-        print(f"bench_speed: error: --only {a.only}: unknown part {', '.join(bad) or '(none)'}; "
-              f"allowed: {', '.join(PARTS)}", file=sys.stderr)
-        return 2
-    scenes = [x.strip() for x in a.scene.split(",") if x.strip()]
-    bad = [x for x in scenes if x not in SCENES]
-    if bad or not scenes:
-        print(f"bench_speed: error: --scene {a.scene}: unknown scene {', '.join(bad) or '(none)'}; "
-              f"allowed: {', '.join(SCENES)}", file=sys.stderr)
+    parts = _choices("--only", a.only, PARTS, "part")
+    scenes = _choices("--scene", a.scene, SCENES, "scene")
+    if parts is None or scenes is None:
         return 2
     from eulag.config import CASES_DIR, Case
 
