@@ -81,7 +81,9 @@ changes are pure noise).  Converged when the residual is below ``numerics.coupli
 and, over the last three passes, the section-mean pressure gradient changed so little that
 the drift still to come of the relaxed iteration (least-squares change per pass over the last
 four values × (1 − α)/α, α the smallest of those four passes', or × r/(1 − r) where the eight
-last passes show a slower contraction r, ``_geometric_ahead``) is below 1 %
+last passes show a slower contraction r, ``_geometric_ahead``; where the last sixteen passes show
+a swing that has turned, at least its range, ``_swing_range``, and a trend that is not slowing
+down counts as unbounded only without such a swing) is below 1 %
 and the particle mass balance (in = out + stuck) closes within 1 %, and the net momentum the
 stochastic inter-particle collisions gave the particles has settled (its change still to come,
 from its trend, below 2 % of their momentum inflow; ``collision_momentum_settled``).  Then ``average_passes``
@@ -263,6 +265,11 @@ def pressure_gradient_to_come(history, relaxation) -> tuple[float, float, float]
     if slow is not None:
         ahead = max(ahead, slow)
     drift, last = abs(trend) * ahead, abs(float(dp[-1]))
+    swing = _swing_range(history)
+    if swing is not None:
+        if not math.isfinite(drift):
+            drift = abs(trend) * max(1.0, (1.0 - alpha) / alpha)
+        drift = max(drift, swing)
     if not math.isfinite(drift):
         return trend, math.inf, alpha
     return trend, drift / last if last > 0.0 else (math.inf if drift > 0.0 else 0.0), alpha
@@ -295,6 +302,33 @@ def _geometric_ahead(history, relaxation, w=_INTEGRAL_PASSES + 1):
         return math.inf
     r = q ** (1.0 / w)
     return r / (1.0 - r)
+
+
+def _swing_range(history, w=_INTEGRAL_PASSES + 1):
+    """The peak-to-peak range of the last 4w values of ``history`` where they show a swing
+    that has turned, else None.
+
+    ``_geometric_ahead`` reads a trend that is not slowing down as unbounded; that is right
+    for a creep, but not at the turn of a slow oscillation about the converged state, whose
+    trend steepens after the turn (scene a: -dp/dx 63.58, 63.31, 63.59, 63.31 Pa/m at passes
+    18, 22, 31, 38, period ~18 passes, 0.44 % peak to peak, read as "inf" for ten passes).
+    And the trend alone is flat at a swing's extreme, where a large swing would pass.
+    A swing: of the least-squares trends of the four quarters of the last 4w values (w each),
+    two stand above 3 standard errors (pooled from the scatter about the four fits) with
+    opposite signs.  The change still to come is then taken as at least the range the swing
+    covers: a swing that does not grow stays within it, a growing one is caught once its range
+    exceeds the tolerance."""
+    h = np.asarray(history[-4 * w:], dtype=float)
+    if h.size < 4 * w or not np.all(np.isfinite(h)):
+        return None
+    x = np.arange(w, dtype=float)
+    fits = [np.polyfit(x, h[i * w:(i + 1) * w], 1) for i in range(4)]
+    scatter = sum(float(np.sum((h[i * w:(i + 1) * w] - np.polyval(f, x)) ** 2)) for i, f in enumerate(fits))
+    se = math.sqrt(scatter / (4 * w - 8) / np.sum((x - x.mean()) ** 2))
+    slopes = [float(f[0]) for f in fits if abs(float(f[0])) > 3.0 * se]
+    if not (any(s > 0.0 for s in slopes) and any(s < 0.0 for s in slopes)):
+        return None
+    return float(np.ptp(h))
 
 
 def steady_drift(history, relaxation, n=2 * _STAGNATION_WINDOW):

@@ -558,6 +558,35 @@ def test_a_slow_geometric_drift_of_the_pressure_gradient_is_not_taken_for_conver
     assert _geometric_ahead(dp, [0.15] * 6 + [0.3] * 6) is None
 
 
+def test_a_turned_swing_of_the_pressure_gradient_is_bounded_by_its_range():
+    """A slow oscillation about the converged state steepens after its turn, which the
+    contraction estimate reads as unbounded, and is flat at its extremes, which the trend
+    reads as converged.  Once the last sixteen passes show the swing turn (significant trends
+    of opposite sign in two of their quarters), its range is the change to come: 0.44 % for
+    scene a's swing (converged at every pass), 4.4 % for one ten times larger (at no pass); a
+    creep that speeds up without turning stays unbounded, noise about a level is no swing."""
+    from eulag.coupling import _geometric_ahead, _swing_range, pressure_gradient_to_come
+
+    n = np.arange(30)
+    rel = [0.3] * 30
+    rng = np.random.default_rng(7)
+    small = 63.45 + 0.14 * np.sin(2.0 * np.pi * n / 18.0) + 0.003 * rng.standard_normal(30)
+    large = 63.45 + 1.4 * np.sin(2.0 * np.pi * n / 18.0) + 0.03 * rng.standard_normal(30)
+    for h, lo, hi in ((small, 0.003, 0.01), (large, 0.03, 0.1)):
+        unbounded = 0
+        for k in range(16, 31):
+            swing = _swing_range(h[:k])
+            assert swing == pytest.approx(np.ptp(h[k - 16:k]))
+            unbounded += _geometric_ahead(h[:k], rel[:k]) == math.inf
+            assert lo < pressure_gradient_to_come(h[:k], rel[:k])[1] < hi
+        assert unbounded > 0  # the case the range replaces
+    creep = 100.0 + 0.05 * n[:16] ** 2
+    assert _swing_range(creep) is None
+    assert pressure_gradient_to_come(creep, rel[:16])[1] == math.inf
+    noise = 100.0 + 0.05 * rng.standard_normal((200, 16))
+    assert sum(_swing_range(v) is not None for v in noise) <= 3
+
+
 def test_collision_statistics_keep_the_case_relaxation_when_alpha_is_lowered():
     # α lowered for the gas (0.075) must not freeze the partner statistics at the first passes'
     from particles.layout import CS_N, CS_OK, NCS
