@@ -514,6 +514,12 @@ class PhysicsConfig(_Section):
         passes, so the net
         collision force per cell vanishes in the mean at the coupled steady state;
         ``particles.PhysicsOptions``, ``eulag.coupling``).
+    wall_cell_fields : str
+        The gas fields a particle sees between the wall-ring centre and the wall (the
+        wall-function cell): ``"log-law"`` (default) reconstructs U (log law, or the
+        sublayer's linear profile below y*_v), ∇ × U and ε ∝ 1/y from the wall-ring values;
+        ``"wall-ring"`` holds the wall-ring values out to the wall. The reference paper does not
+        say how its particles see the wall cell (docs/physics.md, section 3).
     """
 
     section: ClassVar[str] = "physics"
@@ -543,6 +549,8 @@ class PhysicsConfig(_Section):
                                       default="particle", choices=("particle", "cell"))
     partner_momentum: str = _param(STRING, "the collision partners' impulse", default="returned",
                                    choices=("discarded", "returned"))
+    wall_cell_fields: str = _param(STRING, "gas fields the particles see in the wall-function cell",
+                                   default="log-law", choices=("log-law", "wall-ring"))
 
     def _resolve_and_check(self):
         if self.magnus_lift is None:
@@ -748,6 +756,9 @@ DEVIATIONS: dict[str, tuple[Any, Any, str]] = {
     "physics.partner_momentum": ("returned", "discarded",
                                  "the fictitious partners' impulse: discarded (Sommerfeld 2001), or "
                                  "returned to the cell's particles"),
+    "physics.wall_cell_fields": ("log-law", "wall-ring",
+                                 "gas fields the particles see in the wall-function cell: the log-law "
+                                 "reconstruction, or the wall-ring values (the paper does not say)"),
     "numerics.step_rule": ("default", "paper",
                            "particle time step: 0.5 min(T_L, cell crossing, 0.1/f_coll), or the paper's "
                            "0.5 min(tau_p, T_L, tau_coll)"),
@@ -770,7 +781,8 @@ LATER_KEYS: dict[str, Any] = {"physics.partner_correlation": "particle",
                                "numerics.gas_station_retries": "always",
                                "numerics.gas_tolerance_early": "numerics.gas_tolerance",
                                "numerics.drag_implicit_weight": 1.0,
-                               "numerics.residual_noise": "batch"}
+                               "numerics.residual_noise": "batch",
+                               "physics.wall_cell_fields": "log-law"}
 
 
 def comparable_attrs(attrs: dict) -> dict:

@@ -461,7 +461,7 @@ def physics_options(case):
         drift_form=ph.langevin_drift_form,
         gravity=ph.gravity, inter_particle_collisions=ph.inter_particle_collisions,
         step_rule=case.numerics.step_rule, partner_correlation=ph.partner_correlation,
-        partner_momentum=ph.partner_momentum,
+        partner_momentum=ph.partner_momentum, wall_cell=ph.wall_cell_fields,
         wall=WallOptions(impact_angle=w.impact_angle, shadow_effect=w.shadow_effect,
                          lateral_roughness=w.lateral_roughness, rotation=ph.rotation),
         interparticle=InterparticleOptions(restitution=p.restitution, friction=p.friction,

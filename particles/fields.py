@@ -14,8 +14,8 @@ mean-flow vorticity ∇ × U (3) into one contiguous array ``values[nx, nr, nt, 
 * ∇k (for the Langevin drift correction) is the exact gradient of the interpolated k, so
   the drift is consistent with the σ² = 2k/3 the dispersion model actually sees;
 * inside the wall-function cell (beyond the wall-ring centre, distance y from the wall less
-  than y_P) the log-law reconstruction (docs/physics.md, section 3), with the wall-ring
-  values at the particle's (x, θ):
+  than y_P) the log-law reconstruction (docs/physics.md, section 3; ``wall_law``, case key
+  ``physics.wall_cell_fields``), with the wall-ring values at the particle's (x, θ):
 
       U_t(y) = U_t,P g(y*)/g(y*_P),   g(y*) = ln(E y*)/κ  (y* ≥ y*_v),  g = y*  (y* < y*_v)
       u_n(y) = u_n,P y / y_P           (wall-normal component, zero at the wall)
@@ -122,11 +122,12 @@ class FieldTable:
     def shape(self):
         return self.values.shape[:3]
 
-    def at(self, x, y, z):
+    def at(self, x, y, z, wall_law=True):
         """Fields (NF,) at one point (Python convenience around ``interpolate``)."""
         out = np.empty(NF)
         interpolate(float(x), float(y), float(z), self.values, self.axis, self.x_centres,
-                    self.r_centres, self.r_edges, self.length, self.radius, self.nu, out)
+                    self.r_centres, self.r_edges, self.length, self.radius, self.nu, out, -1,
+                    bool(wall_law))
         return out
 
 
@@ -159,7 +160,7 @@ def _blend_section(tab, i, j, k0, k1, wt, f, out, scale):
 
 
 @njit(**KERNEL_FLAGS)
-def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out, ring_hint=-1):
+def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out, ring_hint=-1, wall_law=True):
     """Gas fields at the point (x, y, z) [m] into ``out`` (NF,); see the module docstring.
 
     tab (nx, nr, nt, NT), axis (nx, NT), xc (nx,) station centres (uniform), rc (nr,) ring
@@ -168,7 +169,10 @@ def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out, ri
     as ``rans.locate_cell`` computes them (i = -1 outside the pipe).  ``ring_hint``: a ring
     near the point (the tracker passes the ring of the previous position), from which
     ``rans.mesh.cell_index`` steps to the ring instead of a binary search; the result is the
-    same for any hint (-1: binary search).
+    same for any hint (-1: binary search).  ``wall_law``: inside the wall-function cell the
+    log-law reconstruction (default); False: the wall-ring values at (x, θ) held out to the
+    wall (U, k, ε and the table's ∇ × U of the ring centre; ∇k = 0), the fields a tracker
+    without a wall model would see (``physics.wall_cell_fields = "wall-ring"``).
     """
     nx = tab.shape[0]
     nr = tab.shape[1]
@@ -275,6 +279,14 @@ def interpolate(x, y, z, tab, axis, xc, rc, r_edges, length, radius, nu, out, ri
         return ci, cj, ck
     # wall-function cell: wall-ring values at (x, theta), then the log-law reconstruction
     j = nr - 1
+    if not wall_law:
+        _blend_section(tab, i0, j, k0, k1, wt, NT, out, 1.0 - wx)
+        if wx > 0.0:
+            _blend_section(tab, i1, j, k0, k1, wt, NT, out, wx)
+        out[F_DKX] = 0.0
+        out[F_DKY] = 0.0
+        out[F_DKZ] = 0.0
+        return ci, cj, ck
     _blend_section(tab, i0, j, k0, k1, wt, F_EPS + 1, out, 1.0 - wx)
     if wx > 0.0:
         _blend_section(tab, i1, j, k0, k1, wt, F_EPS + 1, out, wx)

@@ -131,6 +131,10 @@ class PhysicsOptions:
         time, the acceleration a = −F_jump/c of the previous pass's statistics (``layout.CS_APP``:
         the net collision force per unit volume F_jump over the particle concentration c), so
         the net collision impulse per cell vanishes in the mean at the coupled steady state.
+    wall_cell : "log-law" | "wall-ring" — the gas fields a particle sees inside the
+        wall-function cell: the log-law reconstruction of U, ∇ × U and ε from the wall-ring
+        values (docs/physics.md, section 3), or the wall-ring values held out to the wall
+        (``fields.interpolate``, ``wall_law``).  The reference paper does not say which.
     wall : collisions.WallOptions;  interparticle : collisions.InterparticleOptions.
     """
 
@@ -146,6 +150,7 @@ class PhysicsOptions:
     step_rule: str = "default"
     partner_correlation: str = "particle"
     partner_momentum: str = "discarded"
+    wall_cell: str = "log-law"
     wall: WallOptions = field(default_factory=WallOptions)
     interparticle: InterparticleOptions = field(default_factory=InterparticleOptions)
 
@@ -162,6 +167,8 @@ class PhysicsOptions:
             raise ValueError(f"partner_correlation = {self.partner_correlation!r}: allowed particle, cell")
         if self.partner_momentum not in ("discarded", "returned"):
             raise ValueError(f"partner_momentum = {self.partner_momentum!r}: allowed discarded, returned")
+        if self.wall_cell not in ("log-law", "wall-ring"):
+            raise ValueError(f"wall_cell = {self.wall_cell!r}: allowed log-law, wall-ring")
         if self.wall.rotation != self.rotation:
             object.__setattr__(self, "wall", WallOptions(**{**self.wall.__dict__, "rotation": self.rotation}))
         if self.interparticle.rotation != self.rotation:
@@ -481,6 +488,7 @@ def make_tracker(options=PhysicsOptions()):
     returned = pp and options.partner_momentum == "returned"
     rotation = options.rotation
     gravity = options.gravity
+    wall_law = options.wall_cell == "log-law"
 
     key = repr(options)  # a closure cell: numba's cache key then differs per option set
     variant = tracker_variant(options)  # written by every batch, checked by the driver
@@ -581,7 +589,7 @@ def make_tracker(options=PhysicsOptions()):
                 vel[2] = prm[P_INJ_RMS] * g2
                 omega[:] = 0.0
                 ci, cj, ck = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
-                                             radius, nu, fvals)
+                                             radius, nu, fvals, -1, wall_law)
                 if langevin:
                     sig = math.sqrt(2.0 * fvals[F_K] / 3.0)
                     g4, g5 = next_normal_pair(rng_inj)
@@ -779,7 +787,7 @@ def make_tracker(options=PhysicsOptions()):
                         pos[0] = length
                 # ---- fields at x_{n+1}; Langevin update of the fluid velocity seen
                 ni, nj, nk = _INTERPOLATE(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
-                                          radius, nu, dvals, cj)  # ring search from the last ring
+                                          radius, nu, dvals, cj, wall_law)  # ring search from the last ring
                 if langevin:
                     src = dvals  # k, eps and grad k at the new position
                     sig2n = 2.0 * src[F_K] / 3.0
@@ -854,7 +862,7 @@ def make_tracker(options=PhysicsOptions()):
                     for c in range(3):
                         out[off_bud + B_WALL + c] += w_m * dv[c]
                     ci, cj, ck = interpolate(pos[0], pos[1], pos[2], tab, axis, x_centres, rc, r_edges, length,
-                                             radius, nu, fvals, r_edges.shape[0] - 2)  # from the wall ring
+                                             radius, nu, fvals, r_edges.shape[0] - 2, wall_law)  # from the wall ring
                 # ---- inter-particle collision with a fictitious partner (previous pass's statistics)
                 if pp:
                     if ci >= 0:
