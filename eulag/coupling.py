@@ -489,7 +489,8 @@ class PassState:
 
     index: pass number (1 = the first Lagrangian pass); parcels; relaxation α used;
     residual (NaN for pass 1); pressure_gradient: section-mean −dp/dx averaged over x [Pa/m];
-    phase: "early" | "final"; converged: the loop has finished and converged; finished;
+    phase: "early" | "final", the phase the pass ran in (the pass at which the loop converges
+    is early: its parcels are ``parcels_start``); converged: the loop has finished and converged; finished;
     counts: parcel fates of the pass; times: wall-clock seconds of the pass's phases.
     """
 
@@ -776,6 +777,7 @@ class CouplingLoop:
             self.phase = "final"
         elif self.phase == "early" and m > n.max_passes - n.average_passes:
             self.phase = "final"
+        phase_m = self.phase  # the phase this pass runs in (the loop may enter "final" after it)
         parcels_m = n.parcels if self.phase == "final" else n.parcels_start
         stats = self.stats if self.physics.inter_particle_collisions else None
         if stats is not None and self.physics.partner_correlation == "cell":
@@ -879,7 +881,7 @@ class CouplingLoop:
         for name in CRITERIA:  # NaN: not judged (a final pass, or a criterion the case has not)
             getattr(h, "criterion_" + name).append(judged.get(name, math.nan))
         state = PassState(index=m, parcels=parcels_m, relaxation=h.relaxation[-1], residual=residual,
-                          pressure_gradient=dpdx, phase=self.phase, converged=self.converged and self.finished,
+                          pressure_gradient=dpdx, phase=phase_m, converged=self.converged and self.finished,
                           finished=self.finished, counts=counts,
                           times={"gas_solve": t_gas, "lagrangian": t_part})
         if self.checkpoint is not None:

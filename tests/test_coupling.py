@@ -558,6 +558,18 @@ def test_a_slow_geometric_drift_of_the_pressure_gradient_is_not_taken_for_conver
     assert _geometric_ahead(dp, [0.15] * 6 + [0.3] * 6) is None
 
 
+def test_each_pass_reports_the_phase_it_ran_in():
+    """The pass at which the loop converges ran with the early parcels and is reported early;
+    the final passes (the case's parcels) final."""
+    loop = CouplingLoop(small_case(**{"numerics.coupling_tolerance": 1000.0, "numerics.max_passes": 20}))
+    states = []
+    while not loop.finished:
+        states.append(loop.step())
+    assert loop.converged_at is not None and loop.converged_at < 18  # converged, not forced
+    assert [s.phase for s in states] == ["final" if s.parcels == 1500 else "early" for s in states]
+    assert states[-1].phase == "final" and states[0].phase == "early"
+
+
 def test_a_turned_swing_of_the_pressure_gradient_is_bounded_by_its_range():
     """A slow oscillation about the converged state steepens after its turn, which the
     contraction estimate reads as unbounded, and is flat at its extremes, which the trend
