@@ -260,16 +260,13 @@ def pressure_gradient_to_come(history, relaxation) -> tuple[float, float, float]
     dp = np.asarray(history[-(_INTEGRAL_PASSES + 1):], dtype=float)
     alpha = float(np.min(np.asarray(relaxation, dtype=float)[-(_INTEGRAL_PASSES + 1):]))
     trend = float(np.polyfit(np.arange(dp.size, dtype=float), dp, 1)[0])
-    ahead = max(1.0, (1.0 - alpha) / alpha)
+    relaxed = abs(trend) * max(1.0, (1.0 - alpha) / alpha)
     slow = _geometric_ahead(history, relaxation)
-    if slow is not None:
-        ahead = max(ahead, slow)
-    drift, last = abs(trend) * ahead, abs(float(dp[-1]))
+    drift = relaxed if slow is None else max(relaxed, abs(trend) * slow)
     swing = _swing_range(history)
-    if swing is not None:
-        if not math.isfinite(drift):
-            drift = abs(trend) * max(1.0, (1.0 - alpha) / alpha)
-        drift = max(drift, swing)
+    if swing is not None:  # a turned swing: its range, not an unbounded creep
+        drift = max(swing, relaxed if math.isinf(drift) else drift)
+    last = abs(float(dp[-1]))
     if not math.isfinite(drift):
         return trend, math.inf, alpha
     return trend, drift / last if last > 0.0 else (math.inf if drift > 0.0 else 0.0), alpha

@@ -155,9 +155,10 @@ def test_wall_ring_option_holds_the_ring_values_out_to_the_wall():
     np.testing.assert_array_equal(a, tab.at(0.5, r * math.sin(theta), r * math.cos(theta)))
 
 
-def test_wall_ring_option_changes_the_pass_only_through_the_wall_cell():
-    """The tracker compiled for "wall-ring" is another kernel: the pass runs and its particles
-    differ from the log-law pass (the wall cell is visited), the bookkeeping closes."""
+def test_wall_ring_option_reaches_the_tracker():
+    """The tracker compiled for "wall-ring" is another kernel: the pass runs, its sources
+    differ from the log-law pass's (the particles visit the wall cell), the bookkeeping closes,
+    and an unknown value is refused."""
     mesh, gas = periodic_pipe()
     a = track(mesh, gas, BASE, PhysicsOptions(inter_particle_collisions=False), parcels=500, seed=3,
               pass_index=0)
