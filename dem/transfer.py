@@ -7,20 +7,32 @@ f(s) = 1 − |s| for |s| ≤ 1.
 
 Porosity and grain velocity at node j (eq. 8, normalised by grain and node volume):
 
-    φ_j = 1 − V_p Σ_i F(x_i − x_j) / V_j,      u_j = Σ_i v_i F / Σ_i F
+    φ_j = 1 − V_p Σ_i W_ij / V_j,      u_j = Σ_i v_i W_ij / Σ_i W_ij
 
-Wall correction: grain centres can only lie within r ≤ R_c = R_t − R.  With V_j defined as
+Near the tube wall the cross-section tents of the nodes no longer sum to one (with 2 × 2
+nodes, Σ_b f(y − y_b) = 1 only for |y| ≤ R_t/2), so a grain there would deposit less than its
+volume.  Two treatments (``weights``):
 
-    V_j = l_x · (A_t / A_c) · ∫∫_{r < R_c} f(y − y_j) f(z − z_j) dy dz,   A_t = π R_t², A_c = π R_c²,
+- ``"grain"`` (default): each grain's cross-section weights are normalised to sum to one,
+  W_ij = f_x · [f_y / Σ_b f_y] · [f_z / Σ_c f_z], so every grain deposits exactly V_p (in
+  the axial interior), and V_j = l_x · (A_t/A_c) ∫∫_{r < R_c} ŵ_b(y) ŵ_c(z) dy dz (A_t = π R_t²,
+  A_c = π R_c², R_c = R_t − R the radius the centres can reach).  With the 2 × 2 grid every
+  node is a quadrant, V_j = l_x A_t / 4, and the nodes' porosity is the true one for any radial
+  distribution of the centres, also for a real packing whose centres crowd against the wall
+  (``tests/test_slug.py``).
+- ``"tent"``: W_ij = F(x_i − x_j) and V_j = l_x · (A_t/A_c) ∫∫_{r < R_c} f(y − y_j) f(z − z_j) dy dz.
+  A packing whose centres are uniformly distributed in the accessible cylinder then gives its
+  true porosity at every node, but a real packing, with 37–49 % of its centres within 0.1 d of
+  r = R_c, deposits only 0.70–0.87 of its volume there: the nodes' porosity is 0.02–0.03 too
+  high (0.503 for a packing at 0.470), and the Carman–Kozeny resistance per grain 0.72–0.89 of
+  its value at the true porosity.
 
-a packing whose centres are uniformly distributed in the accessible cylinder gives the same φ
-at every node, wall nodes included, equal to its true mean solids fraction N V_p / (A_t L)
-(tests/test_slug.py::test_uniform_packing_gives_uniform_porosity).  The x-extent of every node
-is the full tent (l_x): the feed zone x < 0 holds grains, the outlet node's half-tent beyond L
-is empty as the tube is there.
+The x-extent of every node is the full tent (l_x): the feed zone x < 0 holds grains, the
+outlet node's half-tent beyond L is empty as the tube is there.
 
 Grain values (eq. 9): φ_i = Σ_j φ_j F / Σ_j F and ∇P_i likewise — normalised by the weights,
-which do not sum to one near the wall or the tube ends.
+which do not sum to one near the wall or the tube ends (the same for either treatment: the
+per-grain factor cancels).
 """
 
 import math
@@ -32,23 +44,35 @@ from .conf import JIT_FLAGS, PARALLEL_FLAGS
 from .engine import GONE
 
 
-def cross_section_tent_integrals(ny, tube_r, grain_r, samples=1600):
-    """∫∫_{r < R_t − R} f(y − y_b) f(z − z_c) dy dz [m²] for the ny × ny cross-section nodes (midpoint rule)."""
+#: Cross-section weights of the grain → node transfer (module docstring).
+WEIGHTS = ("grain", "tent")
+
+
+def cross_section_tent_integrals(ny, tube_r, grain_r, samples=1600, weights="grain"):
+    """∫∫_{r < R_t − R} w_b(y) w_c(z) dy dz [m²] for the ny × ny cross-section nodes (midpoint rule);
+    w = f(y − y_b) (``weights = "tent"``) or f normalised to sum to one over b (``"grain"``)."""
+    if weights not in WEIGHTS:
+        raise ValueError(f"weights = {weights!r}: allowed {', '.join(WEIGHTS)}")
     rc = tube_r - grain_r
     h = 2 * tube_r / samples
     s = -tube_r + (np.arange(samples) + 0.5) * h
     l = 2 * tube_r / ny
     nodes = -tube_r + (np.arange(ny) + 0.5) * l
     f = np.clip(1.0 - np.abs(s[None, :] - nodes[:, None]) / l, 0.0, None)  # (ny, samples)
+    if weights == "grain":
+        f = f / f.sum(axis=0)[None, :]
     mask = (s[:, None] ** 2 + s[None, :] ** 2 < rc * rc).astype(float)
-    return f @ mask @ f.T * h * h
+    w = f @ mask @ f.T * h * h
+    if weights == "grain":  # the normalised weights sum to one: Σ_bc w = π R_c² exactly
+        w *= math.pi * rc * rc / w.sum()
+    return w
 
 
-def node_volumes(nx, ny, length, tube_r, grain_r):
+def node_volumes(nx, ny, length, tube_r, grain_r, weights="grain"):
     """V_j [m³] per cross-section node (ny, ny), the same for every axial node (see module docstring)."""
     lx = length / nx
     rc = tube_r - grain_r
-    w = cross_section_tent_integrals(ny, tube_r, grain_r)
+    w = cross_section_tent_integrals(ny, tube_r, grain_r, weights=weights)
     return lx * w * (tube_r ** 2 / rc ** 2)
 
 
@@ -92,8 +116,10 @@ def bin_grains(pos, status, lx, nx, periodic, length, bin_start, items):
             cursor[b[i]] += 1
 
 
-def _grains_to_nodes(pos, vel, bin_start, items, lx, nx, ny, tube_r, periodic, length, sum_f, sum_fv):
-    """Σ_i F(x_i − x_j) and Σ_i v_i F at every node: a ``prange`` over axial node columns, each
+def _grains_to_nodes(pos, vel, bin_start, items, lx, nx, ny, tube_r, periodic, length, sum_f, sum_fv,
+                     per_grain):
+    """Σ_i W_ij and Σ_i v_i W_ij at every node (``per_grain``: the cross-section weights of each
+    grain normalised to sum to one; module docstring): a ``prange`` over axial node columns, each
     gathering from the grains of its neighbouring bins in sorted order (race-free, deterministic)."""
     lt = 2.0 * tube_r / ny
     for i in prange(nx):
@@ -122,6 +148,14 @@ def _grains_to_nodes(pos, vel, bin_start, items, lx, nx, ny, tube_r, periodic, l
                 fx = _tent((x - xj) / lx)
                 if fx == 0.0:
                     continue
+                if per_grain:  # Σ_b f_y Σ_c f_z of this grain: its weights then sum to f_x
+                    sy = 0.0
+                    sz = 0.0
+                    for b in range(ny):
+                        sy += _tent((pos[g, 1] - (-tube_r + (b + 0.5) * lt)) / lt)
+                        sz += _tent((pos[g, 2] - (-tube_r + (b + 0.5) * lt)) / lt)
+                    if sy > 0.0 and sz > 0.0:
+                        fx = fx / (sy * sz)
                 for b in range(ny):
                     fy = _tent((pos[g, 1] - (-tube_r + (b + 0.5) * lt)) / lt)
                     if fy == 0.0:
@@ -192,13 +226,14 @@ nodes_to_grains_serial = njit(**JIT_FLAGS)(_nodes_to_grains)
 class TentTransfer:
     """Tent transfer between the grains and an nx × ny × ny gas grid over a tube of length L."""
 
-    def __init__(self, nx, ny, length, tube_r, grain_r, periodic=False, parallel=False):
+    def __init__(self, nx, ny, length, tube_r, grain_r, periodic=False, parallel=False, weights="grain"):
         self.parallel = bool(parallel)
         self.nx, self.ny, self.length, self.tube_r = nx, ny, length, tube_r
         self.lx = length / nx
         self.periodic = bool(periodic)
+        self.weights = weights
         self.v_grain = 4.0 / 3.0 * math.pi * grain_r ** 3
-        self.vol = node_volumes(nx, ny, length, tube_r, grain_r)
+        self.vol = node_volumes(nx, ny, length, tube_r, grain_r, weights=weights)
         self.bin_start = np.zeros(nx + 3, dtype=np.int64)
         self.sum_f = np.zeros((nx, ny, ny))
         self.sum_fv = np.zeros((nx, ny, ny, 3))
@@ -208,7 +243,7 @@ class TentTransfer:
         items = np.zeros(len(status), dtype=np.int64)
         bin_grains(pos, status, self.lx, self.nx, self.periodic, self.length, self.bin_start, items)
         (grains_to_nodes if self.parallel else grains_to_nodes_serial)(pos, vel, self.bin_start, items, self.lx, self.nx, self.ny, self.tube_r, self.periodic,
-                        self.length, self.sum_f, self.sum_fv)
+                        self.length, self.sum_f, self.sum_fv, self.weights == "grain")
         phi = 1.0 - self.v_grain * self.sum_f / self.vol[None, :, :]
         u = np.zeros_like(self.sum_fv)
         ok = self.sum_f > 0
