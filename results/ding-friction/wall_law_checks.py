@@ -1,12 +1,15 @@
 """The solids wall law (eq. 24-25 of Ding et al. 2024, modified Schneiderbauer) at Q_s = 0.8 m3/h,
 modified Berzi, 16 x 32: what the wall shear is made of, and two physically motivated variants.
 
-    python results/ding-friction/wall_law_checks.py [base|pkin|noqf]
+    python results/ding-friction/wall_law_checks.py [base|pkin|noqf|notau|original]
 
 base  the case as shipped (cases/two_fluid/ding_qs0.8.toml);
 pkin  the normal stress of eq. 24 replaced by the wall's full solids pressure, Lun's p_kin
       (times erf(u-bar)) + p_f;
-noqf  the Coulomb work mu_w p_f |u| left out of the granular-energy wall flux of eq. 25.
+noqf  the Coulomb work mu_w p_f |u| left out of the granular-energy wall flux of eq. 25;
+notau the Coulomb term mu_w p_f left out of the wall shear of eq. 24 only;
+original  both left out: the wall condition of Schneiderbauer, Schellander & Pirker (2012)
+      before Ding et al.'s modification.
 The variants replace ``tfm.wall`` functions inside ``tfm.section`` for this process only; they
 are diagnostics (docs/two-fluid.md, "Measured reasons where it differs"), not options.
 Prints Delta p over 2.4 m, the force balance and the wall integrals over the submerged solids
@@ -48,8 +51,20 @@ def main(variant="base"):
             return orig_q(u, a, rho, g0, th, 0.0 * np.asarray(pf), *args)
 
         S.schneiderbauer_wall_heat_flux = heat_flux
+    elif variant in ("notau", "original"):
+        orig_shear = W.schneiderbauer_wall_shear
+
+        def shear_no_pf(u, a, rho, g0, th, pf, *args):
+            return orig_shear(u, a, rho, g0, th, 0.0 * np.asarray(pf), *args)
+
+        S.schneiderbauer_wall_shear = shear_no_pf
+        if variant == "original":
+            def heat_flux_no_pf(u, a, rho, g0, th, pf, *args):
+                return orig_q(u, a, rho, g0, th, 0.0 * np.asarray(pf), *args)
+
+            S.schneiderbauer_wall_heat_flux = heat_flux_no_pf
     elif variant != "base":
-        raise SystemExit(f"variant {variant!r}: allowed base, pkin, noqf")
+        raise SystemExit(f"variant {variant!r}: allowed base, pkin, noqf, notau, original")
     s, st, ok, c = S.solve_section(pb)
     w, arc, A, a = s.sec.wall, s.sec.wall_arc, s.A, c["a"]
     P = pb.params
@@ -62,7 +77,9 @@ def main(variant="base"):
     print(f"{variant}: converged {ok} after {st.iteration} iterations; dp over 2.4 m {st.G * 2.4 / 1e3:.3f} kPa; "
           f"G A {st.G * s.Atot:.4f} N/m = gas wall {f_gas:.4f} + solids wall {f_sol:.4f}")
     print(f"  solids wall force / W {f_sol / weight:.3f}: collisional {np.sum(P.mu_w * coll_stress * erf(ub) * arc) / weight:.3f}"
-          f" + frictional {np.sum(P.mu_w * c['pf'][w] * arc) / weight:.3f}; holdup {np.sum(a * A) / s.Atot:.4f}")
+          f" + frictional {np.sum(P.mu_w * c['pf'][w] * arc) / weight:.3f}"
+          f"{' (not applied: mu_w p_f left out of the shear)' if variant in ('notau', 'original') else ''}; "
+          f"holdup {np.sum(a * A) / s.Atot:.4f}")
     print(f"  over the wall / W: eta_w a rho g0 Theta {np.sum(coll_stress * arc) / weight:.3f}, "
           f"p_kin + p_f {np.sum((c['pkin'][w] + c['pf'][w]) * arc) / weight:.3f}; erf(u-bar) min {erf(ub).min():.4f}; "
           f"wall u_s {st.us[w].min():.2f}-{st.us[w].max():.2f} m/s, Theta {st.theta[w].min():.2g}-{st.theta[w].max():.2g} m2/s2")
