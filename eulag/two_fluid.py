@@ -85,7 +85,8 @@ SCHEMA = {
                  "viscosity_cap": (1.0e3, _num(0, 1e12))},
     "kinetic": {"restitution": (0.7, _num(0, 1))},
     "walls": {"restitution": (0.5, _num(0, 1)), "friction": (0.5, _num(0, 10, lo_open=False)),
-              "tangential_restitution": (0.3, _num(-1, 1, lo_open=False))},
+              "tangential_restitution": (0.3, _num(-1, 1, lo_open=False)),
+              "law": ("ding", _choice(("ding", "schneiderbauer")))},
     "drag": {"mckeen_scale": (1.0, _num(0, 100)), "blend_width": (0.02, _num(0, 0.2, lo_open=False))},
     "numerics": {"radial_cells": (16, _num(2, 400, integer=True, lo_open=False)),
                  "azimuthal_cells": (32, _num(4, 800, integer=True, lo_open=False, even=True)),
@@ -163,7 +164,8 @@ def problem_from_case(case: dict):
                               internal_friction_angle_deg=f["internal_friction_angle_deg"], e_sw=w["restitution"],
                               mu_w=w["friction"], beta0=w["tangential_restitution"], berzi_a=f["berzi_a"],
                               fr=f["fr"], r=f["r"], s=f["s"], stiffness_over_diameter=f["stiffness_over_diameter"],
-                              linearise_delta=f["linearise_delta"], mu_f_max=f["viscosity_cap"])
+                              linearise_delta=f["linearise_delta"], mu_f_max=f["viscosity_cap"],
+                              wall_law=w["law"])
     n = c["numerics"]
     return SectionProblem(diameter=c["pipe"]["diameter"], rho_g=c["gas"]["density"], mu_g=c["gas"]["viscosity"],
                           rho_s=c["solids"]["density"], d_s=c["solids"]["diameter"],

@@ -37,6 +37,10 @@ class SolidsParameters:
     stiffness_over_diameter: float = 4.5e6
     linearise_delta: float = 0.01
     mu_f_max: float = 1.0e3
+    #: Solids wall condition: "ding" (eqs. 24–26 of Ding et al. 2024: Schneiderbauer et al.'s
+    #: with the Coulomb term μ_w p_f in the shear and its work μ_w p_f |u| in the granular energy's
+    #: wall flux) or "schneiderbauer" (Schneiderbauer, Schellander & Pirker 2012, without it).
+    wall_law: str = "ding"
 
     @property
     def phi_i(self) -> float:

@@ -61,6 +61,12 @@ __all__ = ["SectionDivergence", "SectionProblem", "SectionState", "solve_section
 G_ACC = 9.80665
 
 
+def _wall_pf(pb, pf_wall):
+    """The frictional pressure the solids wall condition sees: p_f of the wall cells (Ding et al.'s
+    eqs. 24–25) or zero (``params.wall_law = "schneiderbauer"``, the 2012 condition)."""
+    return pf_wall if pb.params.wall_law == "ding" else np.zeros_like(pf_wall)
+
+
 class SectionDivergence(RuntimeError):
     """A cross-section solve produced a non-finite or out-of-range value (message: variable, cell, iteration)."""
 
@@ -217,8 +223,8 @@ class _Solver:
         # solids wall (eq. 24), linearised
         usw = st.us[w]
         tau = np.abs(schneiderbauer_wall_shear(np.where(usw == 0.0, 1e-6, usw), a[w], pb.rho_s, c["g0"][w],
-                                               st.theta[w], c["pf"][w], pb.params.e_sw, pb.params.mu_w,
-                                               pb.params.beta0))
+                                               st.theta[w], _wall_pf(pb, c["pf"][w]), pb.params.e_sw,
+                                               pb.params.mu_w, pb.params.beta0))
         hs = tau / np.maximum(np.abs(usw), 1e-2)
         dg = np.zeros(n)
         ds = np.zeros(n)
@@ -301,7 +307,7 @@ class _Solver:
         diag = (gam + 3.0 * c["beta"]) * A
         src = a * c["mukc"] * c["gus2"] * A
         w = sec.wall
-        qw = schneiderbauer_wall_heat_flux(st.us[w], a[w], pb.rho_s, c["g0"][w], th[w], c["pf"][w],
+        qw = schneiderbauer_wall_heat_flux(st.us[w], a[w], pb.rho_s, c["g0"][w], th[w], _wall_pf(pb, c["pf"][w]),
                                            P.e_sw, P.mu_w, P.beta0)
         src_w = -qw * sec.wall_arc
         # implicit part of a negative wall flux (dissipation ∝ Θ^1.5): keep positivity
