@@ -22,10 +22,10 @@ volume.  Two treatments (``weights``):
   (``tests/test_slug.py``).
 - ``"tent"``: W_ij = F(x_i − x_j) and V_j = l_x · (A_t/A_c) ∫∫_{r < R_c} f(y − y_j) f(z − z_j) dy dz.
   A packing whose centres are uniformly distributed in the accessible cylinder then gives its
-  true porosity at every node, but a real packing, with 37–49 % of its centres within 0.1 d of
-  r = R_c, deposits only 0.70–0.87 of its volume there: the nodes' porosity is 0.02–0.03 too
-  high (0.503 for a packing at 0.470), and the Carman–Kozeny resistance per grain 0.72–0.89 of
-  its value at the true porosity.
+  true porosity at every node, but a relaxed packing has 38–44 % of its centres within 0.1 d of
+  r = R_c, where the tents sum to 0.70–0.875: its nodes' porosity is 0.019–0.026 too high
+  (0.546 for a packing at 0.520) and the Carman–Kozeny resistance per grain 0.82–0.86 of its
+  value at the true porosity (results/strauss-filled/grain-weights/porosity_check.py).
 
 The x-extent of every node is the full tent (l_x): the feed zone x < 0 holds grains, the
 outlet node's half-tent beyond L is empty as the tube is there.

@@ -12,7 +12,7 @@ Måløy (2000, Phys. Rev. E 61:4054, doi:10.1103/PhysRevE.61.4054):
   to the gas, pressure gradient and porosity back to the grains; each grain's cross-section
   weights are normalised to sum to one so that it deposits its whole volume also next to the
   wall (``numerics.porosity_weights = "grain"``; ``"tent"``: the plain tent weights over the
-  tent volume inside the tube, which leave the nodes of a real packing 0.02–0.03 too porous).  The gas force on grain i is
+  tent volume inside the tube, which leave the nodes of a real packing about 0.02 too porous).  The gas force on grain i is
 
       F_i = −V_p ∇P_i / (1 − φ_i)                                          [N]
 

@@ -48,7 +48,7 @@ def test_uniform_packing_gives_uniform_porosity(ny):
 
 def _wall_centres(n, length, rng):
     """Centres on the circle the centres can reach, r = R_t − R: the extreme of a real packing's
-    crowding against the wall (37–49 % of a relaxed packing's centres lie within 0.1 d of it)."""
+    crowding against the wall (38–44 % of a relaxed packing's centres lie within 0.1 d of it)."""
     th = rng.uniform(0, 2 * np.pi, n)
     rc = RT - R
     return np.column_stack([rng.uniform(0, length, n), rc * np.cos(th), rc * np.sin(th)])

@@ -64,7 +64,11 @@ G_ACC = 9.80665
 def _wall_pf(pb, pf_wall):
     """The frictional pressure the solids wall condition sees: p_f of the wall cells (Ding et al.'s
     eqs. 24–25) or zero (``params.wall_law = "schneiderbauer"``, the 2012 condition)."""
-    return pf_wall if pb.params.wall_law == "ding" else np.zeros_like(pf_wall)
+    if pb.params.wall_law == "ding":
+        return pf_wall
+    if pb.params.wall_law == "schneiderbauer":
+        return np.zeros_like(pf_wall)
+    raise ValueError(f"params.wall_law = {pb.params.wall_law!r}: allowed 'ding', 'schneiderbauer'")
 
 
 class SectionDivergence(RuntimeError):

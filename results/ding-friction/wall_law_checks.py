@@ -9,13 +9,14 @@ pkin  the normal stress of eq. 24 replaced by the wall's full solids pressure, L
 noqf  the Coulomb work mu_w p_f |u| left out of the granular-energy wall flux of eq. 25;
 notau the Coulomb term mu_w p_f left out of the wall shear of eq. 24 only;
 original  both left out: the wall condition of Schneiderbauer, Schellander & Pirker (2012)
-      before Ding et al.'s modification.
+      before Ding et al.'s modification (the case key walls.law = "schneiderbauer").
 The variants replace ``tfm.wall`` functions inside ``tfm.section`` for this process only; they
 are diagnostics (docs/two-fluid.md, "Measured reasons where it differs"), not options.
 Prints Delta p over 2.4 m, the force balance and the wall integrals over the submerged solids
 weight per unit length W.
 """
 
+import dataclasses
 import math
 import sys
 import tomllib
@@ -51,18 +52,15 @@ def main(variant="base"):
             return orig_q(u, a, rho, g0, th, 0.0 * np.asarray(pf), *args)
 
         S.schneiderbauer_wall_heat_flux = heat_flux
-    elif variant in ("notau", "original"):
+    elif variant == "notau":
         orig_shear = W.schneiderbauer_wall_shear
 
         def shear_no_pf(u, a, rho, g0, th, pf, *args):
             return orig_shear(u, a, rho, g0, th, 0.0 * np.asarray(pf), *args)
 
         S.schneiderbauer_wall_shear = shear_no_pf
-        if variant == "original":
-            def heat_flux_no_pf(u, a, rho, g0, th, pf, *args):
-                return orig_q(u, a, rho, g0, th, 0.0 * np.asarray(pf), *args)
-
-            S.schneiderbauer_wall_heat_flux = heat_flux_no_pf
+    elif variant == "original":  # the case key walls.law = "schneiderbauer"
+        pb = dataclasses.replace(pb, params=dataclasses.replace(pb.params, wall_law="schneiderbauer"))
     elif variant != "base":
         raise SystemExit(f"variant {variant!r}: allowed base, pkin, noqf, notau, original")
     s, st, ok, c = S.solve_section(pb)

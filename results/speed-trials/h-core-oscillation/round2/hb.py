@@ -19,7 +19,6 @@ def _relax(self, comp, sample, alpha):
     else:
         st = {"pass": self.pass_index, "before": st}
         self._hb = st
-    prevstash = st.get("stash") if isinstance(st, dict) and "stash" in st else None
     if self._hb["before"] is not None and "stash" in self._hb["before"]:
         old = self._hb["before"]["stash"]
         for key in ("momentum", "k"):
