@@ -32,7 +32,12 @@ outlet node's half-tent beyond L is empty as the tube is there.
 
 Grain values (eq. 9): φ_i = Σ_j φ_j F / Σ_j F and ∇P_i likewise — normalised by the weights,
 which do not sum to one near the wall or the tube ends (the same for either treatment: the
-per-grain factor cancels).
+per-grain factor cancels), so that the paper's "linear interpolation" returns a uniform field
+at every grain.  ``interpolation = "printed"`` takes eq. 9's plain sums instead: a grain whose
+weights sum to S < 1 (S = 0.70 on the wall at the bottom of the 2 × 2 grid) sees S ∇P and a
+porosity S φ, so its gas force V_p S ∇P/(1 − S φ) is S(1 − φ)/(1 − S φ) of the normalised one
+(0.55 in a slug at φ = 0.48, 0.07 for a lone grain at φ = 0.97).  A diagnostic of what the
+literal equation would do, not a model choice.
 """
 
 import math
@@ -46,6 +51,8 @@ from .engine import GONE
 
 #: Cross-section weights of the grain → node transfer (module docstring).
 WEIGHTS = ("grain", "tent")
+#: Node → grain interpolation (module docstring): normalised by the weights, or eq. 9's plain sum.
+INTERPOLATIONS = ("normalised", "printed")
 
 
 def cross_section_tent_integrals(ny, tube_r, grain_r, samples=1600, weights="grain"):
@@ -171,8 +178,9 @@ def _grains_to_nodes(pos, vel, bin_start, items, lx, nx, ny, tube_r, periodic, l
                         sum_fv[i, b, c, 2] += w * vel[g, 2]
 
 
-def _nodes_to_grains(pos, status, field, lx, nx, ny, tube_r, periodic, length, out):
-    """Tent interpolation of a node field (nx, ny, ny, k) to the grains (eq. 9), normalised by Σ F."""
+def _nodes_to_grains(pos, status, field, lx, nx, ny, tube_r, periodic, length, normalise, out):
+    """Tent interpolation of a node field (nx, ny, ny, k) to the grains (eq. 9), normalised by Σ F
+    (``normalise``) or the plain sum of eq. 9 as printed."""
     lt = 2.0 * tube_r / ny
     ncomp = field.shape[3]
     n = pos.shape[0]
@@ -211,7 +219,7 @@ def _nodes_to_grains(pos, status, field, lx, nx, ny, tube_r, periodic, length, o
                     wsum += w
                     for q in range(ncomp):
                         out[g, q] += w * field[ii, b, c, q]
-        if wsum > 0.0:
+        if normalise and wsum > 0.0:
             for q in range(ncomp):
                 out[g, q] /= wsum
 
@@ -226,7 +234,11 @@ nodes_to_grains_serial = njit(**JIT_FLAGS)(_nodes_to_grains)
 class TentTransfer:
     """Tent transfer between the grains and an nx × ny × ny gas grid over a tube of length L."""
 
-    def __init__(self, nx, ny, length, tube_r, grain_r, periodic=False, parallel=False, weights="grain"):
+    def __init__(self, nx, ny, length, tube_r, grain_r, periodic=False, parallel=False, weights="grain",
+                 interpolation="normalised"):
+        if interpolation not in INTERPOLATIONS:
+            raise ValueError(f"interpolation = {interpolation!r}: allowed {', '.join(INTERPOLATIONS)}")
+        self.normalise = interpolation == "normalised"
         self.parallel = bool(parallel)
         self.nx, self.ny, self.length, self.tube_r = nx, ny, length, tube_r
         self.lx = length / nx
@@ -254,5 +266,5 @@ class TentTransfer:
         """Node field (nx, ny, ny, k) → grain values (N, k)."""
         out = np.zeros((len(status), field.shape[3]))
         (nodes_to_grains if self.parallel else nodes_to_grains_serial)(pos, status, np.ascontiguousarray(field), self.lx, self.nx, self.ny, self.tube_r,
-                        self.periodic, self.length, out)
+                        self.periodic, self.length, self.normalise, out)
         return out

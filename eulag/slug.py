@@ -12,7 +12,10 @@ Måløy (2000, Phys. Rev. E 61:4054, doi:10.1103/PhysRevE.61.4054):
   to the gas, pressure gradient and porosity back to the grains; each grain's cross-section
   weights are normalised to sum to one so that it deposits its whole volume also next to the
   wall (``numerics.porosity_weights = "grain"``; ``"tent"``: the plain tent weights over the
-  tent volume inside the tube, which leave the nodes of a real packing about 0.02 too porous).  The gas force on grain i is
+  tent volume inside the tube, which leave the nodes of a real packing about 0.02 too porous);
+  the pressure gradient and porosity at a grain are the weights-normalised ("linear")
+  interpolation of eq. 9 (``numerics.grain_interpolation = "normalised"``; ``"printed"``: eq.
+  9's plain sums, a diagnostic, :mod:`dem.transfer`).  The gas force on grain i is
 
       F_i = −V_p ∇P_i / (1 − φ_i)                                          [N]
 
@@ -76,11 +79,13 @@ DEFAULTS = {
     "initial": {"plug_length_m": 0.0, "plug_start_m": 0.0, "state": ""},
     "numerics": {"cells_x": 150, "cells_across": 2, "steps_per_contact": 30, "gas_dt_s": 1e-4, "theta": 1.0,
                  "end_time_s": 4.0, "output_interval_s": 0.01, "checkpoint_interval_s": 0.5, "seed": 1,
-                 "min_solid_fraction_force": 0.05, "parallel": False, "porosity_weights": "grain"},
+                 "min_solid_fraction_force": 0.05, "parallel": False, "porosity_weights": "grain",
+                 "grain_interpolation": "normalised"},
 }
 
 _CHOICES = {("tube", "orientation"): ("horizontal", "vertical"), ("gas", "inlet"): ("flux", "source"),
-            ("numerics", "porosity_weights"): ("grain", "tent")}
+            ("numerics", "porosity_weights"): ("grain", "tent"),
+            ("numerics", "grain_interpolation"): ("normalised", "printed")}
 _INTS = {("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "steps_per_contact"),
          ("numerics", "seed")}
 _BOOLS = {("tube", "periodic"), ("numerics", "parallel")}
@@ -271,7 +276,8 @@ class _Simulation:
         self.darcy = DarcySolver(self.grid, gas["pressure_Pa"], gas["viscosity_Pa_s"], self.d, kappa_max=cap,
                                  theta=num["theta"], inlet=gas["inlet"])
         self.transfer = TentTransfer(nx, ny, self.L, self.Rt, 0.5 * self.d, periodic=self.periodic,
-                                     parallel=num["parallel"], weights=num["porosity_weights"])
+                                     parallel=num["parallel"], weights=num["porosity_weights"],
+                                     interpolation=num["grain_interpolation"])
         # feed template
         lb = fd["block_length_m"]
         vol_t = math.pi * self.Rt ** 2 * lb

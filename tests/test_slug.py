@@ -86,6 +86,27 @@ def test_interpolation_to_grains_reproduces_linear_field():
     assert np.allclose(out[:, 0], 3.0 + 50.0 * pos[:, 0], rtol=1e-12)
 
 
+def test_printed_interpolation_is_the_plain_tent_sum():
+    """eq. 9 as printed (``grain_interpolation = "printed"``): a uniform field reaches a grain times
+    its cross-section tent sum, f(y)·Σ f(z); at the bottom of the 2 × 2 grid (y = −(R_t − R),
+    z = 0) that is (1 − (R_t/2 − R)/(R_t)) · 1 = 0.70 for the paper's tube; the default
+    normalised interpolation returns the field itself."""
+    length = 0.07
+    pos = np.array([[0.035, -(RT - R), 0.0], [0.035, 0.0, 0.0], [0.035, -0.5 * (RT - R), 0.3 * RT]])
+    status = np.full(3, FREE, dtype=np.int8)
+    field = np.full((20, 2, 2, 1), 7.0)
+    lt = RT  # node spacing across: D_t / 2
+    s_bottom = 1 - (RT - R - 0.5 * lt) / lt  # the lower node row's tent at y = -(R_t - R); the upper's is 0
+    printed = TentTransfer(20, 2, length, RT, R, periodic=True, interpolation="printed").to_grains(pos, status, field)
+    normal = TentTransfer(20, 2, length, RT, R, periodic=True).to_grains(pos, status, field)
+    assert np.allclose(normal[:, 0], 7.0, rtol=1e-12)
+    assert printed[0, 0] == pytest.approx(7.0 * s_bottom, rel=1e-12) and 0.69 < s_bottom < 0.71
+    assert printed[1, 0] == pytest.approx(7.0, rel=1e-12)  # inside the node square the tents sum to one
+    assert printed[2, 0] == pytest.approx(7.0, rel=1e-12)
+    with pytest.raises(ValueError, match="interpolation = 'cubic': allowed normalised, printed"):
+        TentTransfer(20, 2, length, RT, R, interpolation="cubic")
+
+
 def _case(name):
     with open(CASES / f"{name}.toml", "rb") as fh:
         return tomllib.load(fh)
@@ -101,6 +122,8 @@ def test_packaged_cases_validate(name):
     ("grains", "restitution", 1.5, "grains.restitution = 1.5: allowed"),
     ("gas", "inlet", "piston", "gas.inlet = 'piston': allowed 'flux' | 'source'"),
     ("numerics", "porosity_weights", "volume", "numerics.porosity_weights = 'volume': allowed 'grain' | 'tent'"),
+    ("numerics", "grain_interpolation", "cubic",
+     "numerics.grain_interpolation = 'cubic': allowed 'normalised' | 'printed'"),
     ("numerics", "cells_x", 2.5, "numerics.cells_x = 2.5: allowed an integer"),
     ("tube", "orientation", "inclined", "tube.orientation = 'inclined': allowed"),
     ("feed", "colour", 1, "feed.colour = 1: allowed keys"),
