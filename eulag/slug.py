@@ -605,11 +605,14 @@ def checkpoint_path(out) -> Path:
 
 
 def _comparable(c: dict) -> dict:
-    """A resolved case in the form stored cases are compared in: ``initial.state`` dropped when
-    empty (the key came after the first stored runs, which all started from an empty tube)."""
+    """A resolved case in the form stored cases are compared in: keys that came after stored
+    runs are dropped at the value those runs had — ``initial.state`` when empty (they all
+    started from an empty tube), ``numerics.grain_interpolation`` when "normalised"."""
     same = json.loads(json.dumps(c))
     if not same.get("initial", {}).get("state", None):
         same.get("initial", {}).pop("state", None)
+    if same.get("numerics", {}).get("grain_interpolation", None) == "normalised":
+        same["numerics"].pop("grain_interpolation")
     return same
 
 
@@ -630,7 +633,11 @@ def checkpoint_problem(ckpt, case: dict):
         return f"cannot be read ({' '.join(str(exc).split())})"
     if key is None:
         return "checkpoint written without its case, which cannot be checked"
-    return None if key == _checkpoint_key(validate_slug_case(case)) else "checkpoint of a different case"
+    try:
+        stored = _checkpoint_key(json.loads(key))  # keys that came later dropped at their former value
+    except (ValueError, TypeError, AttributeError):
+        return "checkpoint with an unreadable case"
+    return None if stored == _checkpoint_key(validate_slug_case(case)) else "checkpoint of a different case"
 
 
 #: Keys a continued run (``initial.state``) must share with the case that wrote the state: the
