@@ -240,39 +240,28 @@ def test_run_continued_from_a_state_equals_the_uninterrupted_run(tmp_path, monke
         slug.validate_slug_case(early)
 
 
-def test_cases_stored_before_grain_interpolation_existed_are_the_same_case(tmp_path):
-    """A run stored before numerics.grain_interpolation existed is today's default
-    ("normalised"), not the printed diagnostic: its dataset and its checkpoint are kept."""
+@pytest.mark.parametrize("section,key,other", [("initial", "state", None),
+                                               ("numerics", "grain_interpolation", "printed")])
+def test_cases_stored_before_a_key_existed_are_the_same_case(tmp_path, section, key, other):
+    """A dataset or checkpoint of a run made before a key existed (its stored case has no such
+    key) is the same case as today's with the key at the value those runs had -- initial.state
+    = "" (an empty tube), numerics.grain_interpolation = "normalised" -- so --resume keeps it;
+    with the key at another value it is a different case."""
     import json
 
     case = _short_periodic()
     old = slug.validate_slug_case(case)
-    del old["numerics"]["grain_interpolation"]
+    del old[section][key]
     assert slug.same_case({"case": json.dumps(old)}, case)
     ckpt = tmp_path / "old.checkpoint"
-    key = dict(old, numerics={k: v for k, v in old["numerics"].items() if k != "end_time_s"})
-    with open(ckpt, "wb") as fh:
-        np.savez(fh, case_json=np.array(json.dumps(key, sort_keys=True)))
-    assert slug.checkpoint_problem(ckpt, case) is None
-    case["numerics"]["grain_interpolation"] = "printed"
-    assert not slug.same_case({"case": json.dumps(old)}, case)
-    assert slug.checkpoint_problem(ckpt, case) == "checkpoint of a different case"
-
-
-def test_cases_stored_before_initial_state_existed_are_the_same_case(tmp_path):
-    """A dataset or checkpoint of a run made before the key initial.state existed (its stored case
-    has no such key) is the same case as today's with initial.state = "" (so --resume keeps it)."""
-    import json
-
-    case = _short_periodic()
-    old = slug.validate_slug_case(case)
-    del old["initial"]["state"]
-    assert slug.same_case({"case": json.dumps(old)}, case)
-    ckpt = tmp_path / "old.checkpoint"
-    key = dict(old, numerics={k: v for k, v in old["numerics"].items() if k != "end_time_s"})
+    stored = dict(old, numerics={k: v for k, v in old["numerics"].items() if k != "end_time_s"})
     with open(ckpt, "wb") as fh:  # np.savez would append .npz to a path name
-        np.savez(fh, case_json=np.array(json.dumps(key, sort_keys=True)))
+        np.savez(fh, case_json=np.array(json.dumps(stored, sort_keys=True)))
     assert slug.checkpoint_problem(ckpt, case) is None
+    if other is not None:
+        case[section][key] = other
+        assert not slug.same_case({"case": json.dumps(old)}, case)
+        assert slug.checkpoint_problem(ckpt, case) == "checkpoint of a different case"
     other = _short_periodic()
     other["grains"]["friction"] = 0.3
     assert slug.checkpoint_problem(ckpt, other) == "checkpoint of a different case"
