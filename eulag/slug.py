@@ -231,7 +231,9 @@ def validate_slug_case(case: dict) -> dict:
 
 def gas_force_on_grains(transfer, pos, status, grad, phi, v_grain, min_solid):
     """Gas force [N] (N, 3) on the grains: F_i = −V_p ∇P_i / (1 − φ_i), with ∇P_i and φ_i the tent
-    interpolations (eq. 9) of the node fields grad (nx, ny, ny, 3) [Pa/m] and phi (nx, ny, ny);
+    interpolations (eq. 9; normalised, or the plain sums with ``numerics.grain_interpolation =
+    "printed"``, :class:`dem.transfer.TentTransfer`) of the node fields grad (nx, ny, ny, 3)
+    [Pa/m] and phi (nx, ny, ny);
     1 − φ_i floored at ``min_solid``; zero on grains that are not FREE.  (SMH eq. 6 as printed,
     −∇P/(ρ_s(1 − φ)), is an acceleration; summed over the grains of a volume this force is
     −∇P per unit volume, the Darcy drag of the packing.)"""

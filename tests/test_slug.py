@@ -107,6 +107,13 @@ def test_printed_interpolation_is_the_plain_tent_sum():
         TentTransfer(20, 2, length, RT, R, interpolation="cubic")
 
 
+def test_the_case_key_reaches_the_transfer():
+    case = _short_periodic()
+    assert slug._Simulation(slug.validate_slug_case(case)).transfer.normalise
+    case["numerics"]["grain_interpolation"] = "printed"
+    assert not slug._Simulation(slug.validate_slug_case(case)).transfer.normalise
+
+
 def _case(name):
     with open(CASES / f"{name}.toml", "rb") as fh:
         return tomllib.load(fh)
@@ -259,6 +266,11 @@ def test_cases_stored_before_a_key_existed_are_the_same_case(tmp_path, section, 
         np.savez(fh, case_json=np.array(json.dumps(stored, sort_keys=True)))
     assert slug.checkpoint_problem(ckpt, case) is None
     if other is not None:
+        # stored with the key at the former value, as runs of the key's first version were
+        key_set = dict(stored, **{section: dict(stored[section], **{key: slug.validate_slug_case(case)[section][key]})})
+        with open(ckpt, "wb") as fh:
+            np.savez(fh, case_json=np.array(json.dumps(key_set, sort_keys=True)))
+        assert slug.checkpoint_problem(ckpt, case) is None
         case[section][key] = other
         assert not slug.same_case({"case": json.dumps(old)}, case)
         assert slug.checkpoint_problem(ckpt, case) == "checkpoint of a different case"
