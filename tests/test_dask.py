@@ -257,12 +257,22 @@ def test_worker_killed_mid_pass_same_result(client, local_ds):
 
 def _drop_replica(dask_scheduler, key, worker):
     """Scheduler side: forget ``worker``'s replica of ``key`` (what the active memory manager
-    does to replicas no waiting task needs)."""
-    dask_scheduler.request_remove_replicas(worker, [key], stimulus_id="eulag-test")
+    does to replicas no waiting task needs).  The check and the removal run in one call on the
+    scheduler's loop; a replica the memory manager is dropping at that moment (the scheduler's
+    bookkeeping then raises KeyError) is the state the test wants, so it is left to it."""
+    ts, ws = dask_scheduler.tasks.get(key), dask_scheduler.workers.get(worker)
+    if ts is None or ws is None or ws not in ts.who_has:
+        return False
+    try:
+        dask_scheduler.request_remove_replicas(worker, [key], stimulus_id="eulag-test")
+    except KeyError:
+        return False
+    return True
 
 
 def _holders(dask_scheduler, key):
-    return sorted(ws.address for ws in dask_scheduler.tasks[key].who_has)
+    ts = dask_scheduler.tasks.get(key)
+    return [] if ts is None else sorted(ws.address for ws in ts.who_has)
 
 
 def _dependencies(dask_scheduler, keys):
