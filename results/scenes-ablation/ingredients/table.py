@@ -16,7 +16,8 @@ HERE = Path(__file__).parent
 WHAT = {"magnus_off": "`physics.magnus_lift = false`",
         "saffman_off": "`physics.saffman_mei_lift = false`",
         "rotation_off": "`physics.rotation = false` (no Magnus lift, no spin in the collisions)",
-        "grid400": "14 × 28 = 392 cells per cross-section (the paper: 400)"}
+        "grid400": "14 × 28 = 392 cells per cross-section (the paper: 400)",
+        "grid400_seed2": "14 × 28 cells, `numerics.seed = 2`"}
 
 
 def row(run: str) -> str:
