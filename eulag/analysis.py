@@ -33,7 +33,7 @@ __all__ = [
     "recirculation_cells", "count_cells", "gas_maximum_half", "wall_impact_rates",
     "vertical_profile", "section_mean", "pressure_drop_summary", "attr",
     "mirror_index", "mirror_average", "mirror_symmetrise_psi", "mirror_symmetrise_velocity",
-    "azimuthal_mode_index", "pattern_metrics", "vertical_uy_sign_pattern",
+    "azimuthal_mode_index", "pattern_metrics", "vertical_uy_sign_pattern", "sign_text",
     "interior_solenoidal_max", "upper_lower_peak_ratio", "replica_pattern_metrics",
 ]
 
@@ -762,6 +762,12 @@ def pattern_metrics(ds: xr.Dataset, x: float | None = None, threshold: float = 0
     geo = polar_section(ds)
     return _pattern(geo, _field(ds, "gas_uy", x), _field(ds, "gas_uz", x), bulk_velocity(ds),
                     threshold, min_area, noise_factor, segments, floor, min_strength)
+
+
+def sign_text(pattern) -> str:
+    """A sign pattern (``uy_sign_pattern`` of :func:`pattern_metrics`: +1/-1 from the bottom wall
+    up) as text, e.g. [1, -1] -> "+-"; "0" for an empty pattern (no segment above the noise)."""
+    return "".join("+" if v > 0 else "-" for v in pattern) or "0"
 
 
 def vertical_uy_sign_pattern(ds: xr.Dataset, x: float | None = None, noise_factor: float = 3.0,

@@ -373,8 +373,10 @@ def test_vertical_sign_pattern_of_a_constructed_profile():
     v = 0.03
     ds = mesh_dataset(m, v * np.cos(1.5 * np.pi * m.y / R), np.zeros((NR, NT)))
     assert an.vertical_uy_sign_pattern(ds) == ([-1, 1, -1], 2)
+    assert an.sign_text(an.vertical_uy_sign_pattern(ds)[0]) == "-+-"
     odd = mesh_dataset(m, v * m.z / R, np.zeros((NR, NT)))
     assert an.vertical_uy_sign_pattern(odd) == ([], 0)
+    assert an.sign_text([]) == "0"
 
 
 def test_replica_error_bars_and_agreement():

@@ -117,7 +117,7 @@ def extract_metrics(ds, case: Case) -> dict:
     sec = an.section(ds, x)
     k_axis = float(sec["gas_k"].values[0].mean())
     out = {"cells": m["count_symmetrised"], "cells_raw": m["count_raw"], "index": m["mode_index"],
-           "uy_pattern": "".join("+" if v > 0 else "-" for v in m["uy_sign_pattern"]) or "0",
+           "uy_pattern": an.sign_text(m["uy_sign_pattern"]),
            "sense": m["main_pair_sense"] or "-", "strength": m["strength"],
            "interior": m["interior_solenoidal_max"], "peak_ratio": m["upper_lower_peak_ratio"],
            "dpdx": float(sec["pressure_gradient"].values), "k_axis": k_axis / _axis_k_single_phase(case)}

@@ -56,7 +56,7 @@ def pattern_columns(ds, x: float) -> dict:
         coll = ", ".join(f"{float(ds[f'particle_collision_force_total_{c}']):+.2g} ± "
                          f"{float(ds[f'particle_collision_force_total_{c}_stderr']):.1g}" for c in "xy")
     return {"cells_sym": cells, "index": pm("mode_index", ".2f"),
-            "uy_pattern": "".join("+" if v > 0 else "-" for v in m["uy_sign_pattern"]) or "0",
+            "uy_pattern": an.sign_text(m["uy_sign_pattern"]),
             "sense": m["main_pair_sense"] or "-", "interior": pm("interior_solenoidal_max", ".3g"), "coll": coll}
 
 

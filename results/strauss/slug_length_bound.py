@@ -7,7 +7,7 @@ is below 0.6, and give 470-500 grains per slug beside a slug length of 4-8 cm. A
 that are all below φ = 0.6 holds at least 0.4 of its volume in grains, so N grains make a slug no
 longer than L_max = N V_p / (0.4 A) (A the tube's cross-section, V_p a grain's volume); at the
 slugs' mean porosity φ̄ the length is N V_p / ((1 − φ̄) A). The script prints both for the
-paper's grain counts, and the mean porosity of the slugs of the 22.5 s run (its record: mean
+paper's grain counts (tube and grain diameters from the run's case), and the mean porosity of the slugs of the 22.5 s run (its record: mean
 grains per slug and mean length, slugs of ≥ 100 grains centred in 15-40 cm, t ≥ 6 s).
 """
 
@@ -15,15 +15,17 @@ import json
 import math
 from pathlib import Path
 
+from eulag.slug import SLUG_POROSITY as PHI_SLUG   # the paper's slug criterion, phi < 0.6
+
 HERE = Path(__file__).parent
-D_TUBE, D_GRAIN, PHI_SLUG = 0.007, 0.0014, 0.6
 RECORD = HERE / "strauss__vs-1.0__feed-2.49__t-22.5.record.json"
 
 
 def main():
-    area = math.pi * D_TUBE**2 / 4.0
-    vp = math.pi * D_GRAIN**3 / 6.0
-    m = json.loads(RECORD.read_text())["metrics"]
+    record = json.loads(RECORD.read_text())
+    case, m = json.loads(record["case"]), record["metrics"]
+    area = math.pi * case["tube"]["diameter_m"] ** 2 / 4.0
+    vp = math.pi * case["grains"]["diameter_m"] ** 3 / 6.0
     n_run, l_run = m["slug_grains"], m["slug_length_m"]
     phi_run = 1.0 - n_run * vp / (l_run * area)
     print(f"tube cross-section {area:.4e} m2, grain volume {vp:.4e} m3")

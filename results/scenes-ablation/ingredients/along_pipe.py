@@ -20,7 +20,7 @@ def main(path):
     ds = xr.open_dataset(path)
     for x in STATIONS:
         m = an.pattern_metrics(ds, x)
-        signs = "".join("+" if s > 0 else "-" for s in m["uy_sign_pattern"])
+        signs = an.sign_text(m["uy_sign_pattern"])
         print(f"x = {x:4} m: cells {m['count_symmetrised']}, index {m['mode_index']:.2f}, u_y {signs:3}, "
               f"{m['main_pair_sense']}, strength {m['strength']:.3f} %, interior {m['interior_solenoidal_max']:.3f} %")
 

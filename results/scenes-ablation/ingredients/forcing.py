@@ -1,4 +1,4 @@
-"""The cell pattern of the particles' in-plane force on the gas, beside the gas's own pattern:
+"""The cell pattern of the particles' in-plane force on the gas:
 
     python results/scenes-ablation/ingredients/forcing.py RUN.nc [...]
 
@@ -11,11 +11,12 @@ signs of its mirror-even vertical component along the vertical diameter from the
 up, and the rotation sense of its main pair), once at the station x = 3.555 m and once
 averaged over the stations of the window 2.56-3.56 m (the last metre, over which the cross
 flow at the station develops; the average lowers the Monte-Carlo noise of single stations).
+The gas's own pattern at the station is in ``section_metrics.py`` (one folder up).
 
-If the force already has the gas's cell count, the particle phase decides the pattern; if the
-force has four cells and the gas two, the gas's response (turbulent viscosity, the developing
-axial flow) decides it. The force's "strength" column is left out: it is in N m-3, not a speed.
-Printed as JSON, one object per dataset.
+If the force has the gas's cell count, the pattern is in the forcing already; if the force had
+four cells and the gas two, the gas's response (turbulent viscosity, the developing axial flow)
+would have removed the second pair. The force's "strength" is left out: it is in N m-3, not a
+speed. Printed as JSON, one object per dataset.
 """
 
 import json
@@ -36,7 +37,7 @@ def force_pattern(geo, sy, sz) -> dict:
     keep = ("count_symmetrised", "mode_index", "uy_sign_pattern", "main_pair_sense",
             "upper_lower_peak_ratio")
     out = {k: m[k] for k in keep}
-    out["uy_sign_pattern"] = "".join("+" if s > 0 else "-" for s in m["uy_sign_pattern"])
+    out["uy_sign_pattern"] = an.sign_text(m["uy_sign_pattern"])
     return out
 
 
@@ -50,13 +51,9 @@ def main():
         win = ds.sel(x=slice(*WINDOW))
         window = force_pattern(geo, win["source_uy"].mean("x").transpose("r", "theta").values,
                                win["source_uz"].mean("x").transpose("r", "theta").values)
-        gas = an.pattern_metrics(ds, X)
-        gas = {"count_symmetrised": gas["count_symmetrised"], "mode_index": gas["mode_index"],
-               "uy_sign_pattern": "".join("+" if s > 0 else "-" for s in gas["uy_sign_pattern"]),
-               "main_pair_sense": gas["main_pair_sense"]}
         print(json.dumps({"dataset": path, "station_x": float(sec["x"]),
                           "window_stations": int(win.sizes["x"]),
-                          "gas_flow": gas, "force_station": station, "force_window": window},
+                          "force_station": station, "force_window": window},
                          indent=1, default=float))
 
 
