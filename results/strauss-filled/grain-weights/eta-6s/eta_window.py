@@ -1,15 +1,15 @@
 """Δp against the gas viscosity η with error bars: block means over a long window of each run.
 
-Usage: python results/strauss-filled/grain-weights/eta_window.py RUN.nc [RUN.nc ...]
+Usage: python results/strauss-filled/grain-weights/eta-6s/eta_window.py RUN.nc [RUN.nc ...]
            [--t-min S] [--block S]
 
 For each slug dataset: the mean pressure drop and grains in the tube over t ≥ t_min (default:
 the second half of the run's window after its start state, as the study measures), with the
 standard error from the scatter of block means (block length --block, default 0.5 s). The
 errors printed for blocks of 0.1–1 s show whether the blocks are longer than the series'
-correlation time: the error stops growing with the block length once they are.
-Then the weighted least-squares slope
-of Δp against η with its standard error: the paper's Fig. 6 has Δp falling with η.
+correlation time: the error stops growing with the block length once they are. Then the
+weighted least-squares slope of Δp against η with its standard error, and each step between
+neighbouring η: the paper's Fig. 6 has Δp falling with η.
 """
 
 from __future__ import annotations
@@ -29,7 +29,8 @@ def block_mean(t: np.ndarray, v: np.ndarray, t0: float, block: float) -> tuple[f
     if len(t) == 0:
         return math.nan, math.nan, 0
     idx = np.floor((t - t[0]) / block + 1e-9).astype(int)
-    full = [v[idx == k].mean() for k in range(idx.max() + 1) if (idx == k).sum() >= 0.9 * block / np.median(np.diff(t))]
+    per_block = block / float(np.median(np.diff(t)))  # records in a full block
+    full = [v[idx == k].mean() for k in range(idx.max() + 1) if (idx == k).sum() >= 0.9 * per_block]
     m = float(v.mean())
     if len(full) < 2:
         return m, math.nan, len(full)
@@ -47,8 +48,7 @@ def main(argv=None) -> int:
         with xr.open_dataset(path) as ds:
             c = json.loads(ds.attrs["case"])
             t = ds["time"].values
-            t_start = float(t[0])
-            t0 = a.t_min if a.t_min is not None else 0.5 * (t_start + float(t[-1]))
+            t0 = a.t_min if a.t_min is not None else 0.5 * (float(t[0]) + float(t[-1]))
             dp, dp_se, nb = block_mean(t, ds["pressure_drop"].values, t0, a.block)
             n, n_se, _ = block_mean(t, ds["grains_in_tube"].values, t0, a.block)
             sweep = {b: block_mean(t, ds["pressure_drop"].values, t0, b)[1] for b in (0.1, 0.25, 0.5, 1.0)}
