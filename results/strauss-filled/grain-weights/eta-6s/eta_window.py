@@ -21,6 +21,8 @@ import math
 import numpy as np
 import xarray as xr
 
+from eulag.slug import state_time
+
 
 def block_mean(t: np.ndarray, v: np.ndarray, t0: float, block: float) -> tuple[float, float, int]:
     """Mean of v over t ≥ t0 and its standard error from the means of consecutive blocks."""
@@ -48,21 +50,30 @@ def main(argv=None) -> int:
         with xr.open_dataset(path) as ds:
             c = json.loads(ds.attrs["case"])
             t = ds["time"].values
-            t0 = a.t_min if a.t_min is not None else 0.5 * (float(t[0]) + float(t[-1]))
+            start = state_time(c)  # the filled-tube state's time (run from the repository root)
+            t0 = a.t_min if a.t_min is not None else 0.5 * (start + float(t[-1]))
             dp, dp_se, nb = block_mean(t, ds["pressure_drop"].values, t0, a.block)
             n, n_se, _ = block_mean(t, ds["grains_in_tube"].values, t0, a.block)
             sweep = {b: block_mean(t, ds["pressure_drop"].values, t0, b)[1] for b in (0.1, 0.25, 0.5, 1.0)}
+            whole = [ds["pressure_drop"].values[(t >= s0) & (t < s0 + a.block)].mean()
+                     for s0 in np.arange(start, t[-1] - 0.5 * a.block, a.block)]
+            g = ds["grains_in_tube"].values
+            first_last = (g[t < start + 1.0].mean(), g[t > t[-1] - 1.0].mean())
+            # the study's 3 s runs from the same state measure over 1.5-3 s after the start
+            early = ds["pressure_drop"].values[(t >= start + 1.5 - 1e-9) & (t <= start + 3.0 + 1e-9)].mean()
         eta = c["gas"]["viscosity_Pa_s"]
-        rows.append((eta, dp, dp_se, n, n_se, nb, t0, float(t[-1]), sweep))
+        rows.append((eta, dp, dp_se, n, n_se, nb, t0, float(t[-1]), sweep, (min(whole), max(whole)), first_last, early))
     rows.sort()
     print(f"block {a.block:g} s; Δp and grains as mean ± standard error of the block means")
     print("| η [cP] | window [s] | blocks | Δp [Pa] | grains in the tube | Δp per grain [Pa] "
-          "| Δp's standard error for blocks of 0.1 / 0.25 / 0.5 / 1 s [Pa] |")
-    print("|---|---|---|---|---|---|---|")
-    for eta, dp, dp_se, n, n_se, nb, t0, t1, sweep in rows:
+          "| Δp's standard error for blocks of 0.1 / 0.25 / 0.5 / 1 s [Pa] "
+          "| block means of Δp over the whole run, min–max [Pa] | grains, first / last second of the run "
+          "| Δp over 1.5–3 s after the start (the study's 3 s runs' window) [Pa] |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for eta, dp, dp_se, n, n_se, nb, t0, t1, sweep, rng, fl, early in rows:
         sw = " / ".join(f"{sweep[b]:.0f}" for b in (0.1, 0.25, 0.5, 1.0))
         print(f"| {eta * 1e3:g} | {t0:.2f}–{t1:.2f} | {nb} | {dp:.0f} ± {dp_se:.0f} | {n:.0f} ± {n_se:.0f} "
-              f"| {dp / n:.3f} | {sw} |")
+              f"| {dp / n:.3f} | {sw} | {rng[0]:.0f}–{rng[1]:.0f} | {fl[0]:.0f} / {fl[1]:.0f} | {early:.1f} |")
     if len(rows) >= 2:
         x = np.array([r[0] * 1e3 for r in rows])
         y = np.array([r[1] for r in rows])
