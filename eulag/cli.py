@@ -66,7 +66,8 @@ def _build_parser() -> argparse.ArgumentParser:
                           "output is already a finished run of the same case")
     run.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     run.add_argument("--no-plots", action="store_true",
-                     help="gas-particle cases: do not write the figures (eulag plot) beside the dataset")
+                     help="do not write the figures (eulag plot) beside the dataset (gas-particle and "
+                          "dense-phase cases)")
     _add_dask_arguments(run, "the Lagrangian passes' super-batches")
     run.set_defaults(func=cmd_run)
 
@@ -84,10 +85,12 @@ def _build_parser() -> argparse.ArgumentParser:
                         "the extra eulag[vtk]) or .vtu (unstructured grid)")
     export.set_defaults(func=cmd_export)
 
-    plot = sub.add_parser("plot", help="figures (PNG) from a dataset: section, profiles, convergence")
+    plot = sub.add_parser("plot", help="figures (PNG) from a dataset: section, profiles, convergence; slug runs: "
+                                       "space-time, history, averaged slug profiles")
     plot.add_argument("dataset", metavar="OUT.nc", help="dataset written by 'eulag run'")
     plot.add_argument("--x", type=float, metavar="X",
-                      help="axial station [m] (default: the first pipe.sections entry)")
+                      help="axial station [m] (default: the first pipe.sections entry; a marched two-fluid "
+                           "pipe: its end; not for slug datasets)")
     plot.add_argument("-o", "--output", metavar="DIR",
                       help="figure directory (default: <dataset stem>_figures/ beside the dataset)")
     plot.set_defaults(func=cmd_plot)
@@ -208,7 +211,7 @@ def cmd_run(args) -> int:
               flush=True)
     try:
         result = runs.execute(case, out, resume=args.resume, progress=progress, notify=notify, tracker=tracker,
-                              plots=coupled and not args.no_plots,
+                              plots=(coupled or not isinstance(case, Case)) and not args.no_plots,
                               gas_progress=not args.quiet and sys.stderr.isatty())
     except runs.RunError as exc:
         raise _Fail(str(exc), exc.status) from None
@@ -549,9 +552,14 @@ def cmd_plot(args) -> int:
             ds = opened.load()
     except Exception as exc:
         raise _Fail(f"{path}: cannot be read as a NetCDF dataset ({exc})", EXIT_BAD_INPUT) from None
-    missing = [v for v in ("gas_ux", "y", "z", "cell_area") if v not in ds.variables]
+    model = str(ds.attrs.get("model", "euler-lagrange"))
+    needed = ("porosity", "time", "x", "case") if model == "dem-darcy" else ("gas_ux", "y", "z", "cell_area")
+    missing = [v for v in needed if v not in ds.variables and v not in ds.attrs]
     if missing:
         raise _Fail(f"{path}: not an eulag dataset (no {', '.join(missing)})", EXIT_BAD_INPUT)
+    if model == "dem-darcy" and args.x is not None:
+        raise _Fail(f"--x {args.x:g}: a dem-darcy (slug) dataset has no cross-section station (its figures "
+                    "span the tube and the run's time); allowed: no --x", EXIT_BAD_INPUT)
     try:
         analysis.check_station(ds, args.x)
     except ValueError as exc:

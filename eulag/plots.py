@@ -5,7 +5,12 @@
 * :func:`vertical_profiles` -- gas and particle axial velocity over the vertical diameter,
   with measurements when given;
 * :func:`convergence` -- residual (and pressure-gradient) history;
-* :func:`plot_all` -- all of them for one dataset, written together or not at all.
+* dense-phase models: :func:`slug_spacetime`, :func:`slug_history`, :func:`slug_profiles_figure`
+  (``model = "dem-darcy"``; Strauss, McNamara & Herrmann Figs. 1, 12-16) and
+  :func:`two_fluid_section`, :func:`two_fluid_profiles`, :func:`two_fluid_development`,
+  :func:`two_fluid_convergence` (``model = "two-fluid"``; after Ding et al. Figs. 5-10);
+* :func:`plot_all` -- all of a dataset's figures (chosen by its ``model`` attribute), written
+  together or not at all.
 
 Matplotlib with the Agg canvas and :class:`matplotlib.figure.Figure` objects only: no pyplot
 state, nothing left open. Sections are drawn as seen looking downstream (z right, y up).
@@ -31,7 +36,9 @@ from matplotlib.tri import Triangulation
 from eulag import analysis as an
 
 __all__ = ["three_panel", "vertical_profiles", "convergence", "plot_all", "read_reference",
-           "resolve_reference", "default_station"]
+           "resolve_reference", "default_station", "slug_spacetime", "slug_history",
+           "slug_profiles_figure", "two_fluid_section", "two_fluid_profiles", "two_fluid_development",
+           "two_fluid_convergence"]
 
 
 # ---------------------------------------------------------------------------
@@ -396,6 +403,237 @@ def convergence(ds: xr.Dataset, path) -> Path | None:
 
 
 # ---------------------------------------------------------------------------
+# dense-phase models
+# ---------------------------------------------------------------------------
+
+#: the middle of the paper's tube over which SMH average their slugs (15-40 cm of 52.5 cm),
+#: scaled with the tube length
+_SLUG_MIDDLE = (0.15 / 0.525, 0.40 / 0.525)
+
+
+def _slug_case(ds: xr.Dataset) -> dict:
+    import json
+
+    return json.loads(ds.attrs["case"])
+
+
+def _slug_title(ds: xr.Dataset) -> str:
+    c = _slug_case(ds)
+    g, t = c.get("gas", {}), c.get("tube", {})
+    bits = [c.get("name", "dem-darcy run"), t.get("orientation", ""),
+            f"v_s = {g.get('superficial_velocity_m_s', float('nan')):g} m/s" if "superficial_velocity_m_s" in g else "",
+            f"feed {c['feed']['mass_flow_kg_h']:g} kg/h" if c.get("feed", {}).get("mass_flow_kg_h") else ""]
+    text = ", ".join(b for b in bits if b)
+    partial = ds.attrs.get("partial")
+    return f"{text} ({partial})" if partial else text
+
+
+def slug_spacetime(ds: xr.Dataset, path, t0: float = 0.0, t1: float = np.inf, title: str = "") -> Path:
+    """Write the space-time image of the cross-section porosity of a slug run (SMH Figs. 1, 4
+    and 20): time across, the tube axis up, dark = dense (porosity 0.4-1); ``t0``, ``t1`` [s]
+    the time window drawn, ``title`` (default: the case name and its conveying conditions)."""
+    ds = ds.sel(time=slice(t0, t1 if np.isfinite(t1) else None))
+    fig = _new_figure(9.0, 3.2)
+    ax = fig.subplots()
+    im = ax.pcolormesh(ds["time"].values, ds["x"].values * 100, np.asarray(ds["porosity"].values).T, cmap="gray",
+                       vmin=0.4, vmax=1.0, shading="auto")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("x [cm]")
+    partial = ds.attrs.get("partial")
+    head = f"{title} ({partial})" if title and partial else (title or _slug_title(ds))
+    ax.set_title(f"porosity, {head}", fontsize=9)
+    fig.colorbar(im, ax=ax, label="porosity")
+    return _save(fig, path)
+
+
+def slug_history(ds: xr.Dataset, path) -> Path:
+    """Write the run's time series: the pressure drop over the tube [Pa], the grains in the
+    tube and the solids outflow [kg/h] beside the feed rate (an open tube only)."""
+    c = _slug_case(ds)
+    t = np.asarray(ds["time"].values, dtype=float)
+    fed = None if c["tube"].get("periodic") else c.get("feed", {}).get("mass_flow_kg_h")
+    panels = [("pressure_drop", "pressure drop [Pa]", 1.0), ("grains_in_tube", "grains in the tube", 1.0)]
+    if fed is not None and "outflow_mass_rate" in ds:
+        panels.append(("outflow_mass_rate", "solids outflow [kg/h]", 3600.0))
+    fig = _new_figure(4.2 * len(panels), 3.4)
+    axes = np.atleast_1d(fig.subplots(1, len(panels)))
+    for ax, (name, label, scale) in zip(axes, panels):
+        ax.plot(t, np.asarray(ds[name].values, dtype=float) * scale, lw=0.9)
+        if name == "outflow_mass_rate":
+            ax.axhline(float(fed), color="C3", ls="--", lw=1, label=f"feed {float(fed):g} kg/h")
+            ax.legend(fontsize="small")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    fig.suptitle(_slug_title(ds), fontsize=10)
+    return _save(fig, path)
+
+
+def slug_profiles_figure(ds: xr.Dataset, path, x_window=None, t_min=None, min_grains: int = 100) -> Path:
+    """Write the averaged slug profiles against the distance from the slug centre in grain
+    diameters (SMH Figs. 12-16; Δx > 0 ahead of the slug): porosity, axial grain velocity, the
+    gas force per unit volume −∂P'/∂x, and where the dataset has them the wall normal stress,
+    the granular temperature and the mean contact force per grain (:func:`eulag.slug.slug_profiles`).
+
+    Slugs of ≥ ``min_grains`` grains centred in ``x_window`` [m] (default: the whole tube of a
+    periodic case, else the middle 15-40 cm of the paper's 52.5 cm, scaled with the length) at
+    time ≥ ``t_min`` [s] (default: the second half of the records). Without such a slug the
+    figure says so.
+    """
+    from eulag.slug import slug_profiles
+
+    c = _slug_case(ds)
+    L = float(c["tube"]["length_m"])
+    if x_window is None:
+        x_window = (0.0, L) if c["tube"].get("periodic") else (_SLUG_MIDDLE[0] * L, _SLUG_MIDDLE[1] * L)
+    t = np.asarray(ds["time"].values, dtype=float)
+    if t_min is None:
+        t_min = float(t[0] + 0.5 * (t[-1] - t[0])) if t.size else 0.0
+    prof = slug_profiles(ds, x_window=x_window, t_min=t_min, min_grains=min_grains)
+    q = np.asarray(prof["dx_over_d"].values, dtype=float)
+    n = int(np.max(prof["samples"].values)) if prof["samples"].size else 0
+    panels = [("porosity", "porosity [1]", 1.0, "Fig. 12"), ("grain_velocity", "grain velocity [m s$^{-1}$]", 1.0, "Fig. 13"),
+              ("drag", r"$-\partial P'/\partial x$ [hPa m$^{-1}$]", 0.01, "Fig. 14"),
+              ("wall_normal_stress", "wall normal stress [Pa]", 1.0, "Fig. 15"),
+              ("granular_temperature", "granular temperature [mm$^2$ s$^{-2}$]", 1e6, "Fig. 16"),
+              ("contact_force", "contact force per grain [mN]", 1e3, "")]
+    panels = [p for p in panels if p[0] in prof]
+    ncol = 3
+    nrow = -(-len(panels) // ncol)
+    fig = _new_figure(4.0 * ncol, 3.1 * nrow)
+    axes = np.atleast_2d(fig.subplots(nrow, ncol, squeeze=False)).ravel()
+    for ax in axes[len(panels):]:
+        ax.set_visible(False)
+    for ax, (name, label, scale, ref) in zip(axes, panels):
+        if n == 0:
+            ax.text(0.5, 0.5, f"no slug of ≥ {min_grains} grains\nin the window", ha="center", va="center",
+                    transform=ax.transAxes, color="0.3")
+        else:
+            ax.plot(q, np.asarray(prof[name].values, dtype=float) * scale, "-", lw=1.2)
+        ax.axvline(0.0, color="0.8", lw=0.6)
+        ax.set_xlabel(r"$\Delta x / d$ (ahead of the slug > 0)")
+        ax.set_ylabel(label)
+        if ref:
+            ax.set_title(f"after SMH {ref}", fontsize=8)
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{_slug_title(ds)}\naveraged slug: {n} slug records (≥ {min_grains} grains, centred in "
+                 f"{100 * x_window[0]:.3g}-{100 * x_window[1]:.3g} cm, t ≥ {t_min:.4g} s)", fontsize=10)
+    return _save(fig, path)
+
+
+_TWO_FLUID_SECTION = (("solids_fraction", r"$\alpha_s$ [1]", "viridis"),
+                      ("gas_ux", r"gas $u_x$ [m s$^{-1}$]", "viridis"),
+                      ("solids_ux", r"solids $u_x$ [m s$^{-1}$]", "viridis"),
+                      ("granular_temperature", r"$\Theta$ [m$^2$ s$^{-2}$]", "magma"))
+
+
+def _two_fluid_name(ds: xr.Dataset) -> str:
+    c = ds.attrs
+    bits = [str(c.get("name", "") or "two-fluid run"), f"friction {c['friction.model']}" if "friction.model" in c else "",
+            f"U_g = {float(c['gas.superficial_velocity']):.3g} m/s" if "gas.superficial_velocity" in c else "",
+            f"M_s = {float(c['solids.mass_flow']):.3g} kg/s" if "solids.mass_flow" in c else ""]
+    return ", ".join(b for b in bits if b)
+
+
+def _two_fluid_where(ds: xr.Dataset, x) -> str:
+    if ds.sizes.get("x", 1) == 1:
+        return "fully developed section"
+    return f"x = {_station(ds, x):.4g} m from the inlet"
+
+
+def two_fluid_section(ds: xr.Dataset, x: float | None, path) -> Path:
+    """Write the cross-section of a two-fluid run at the station nearest ``x`` [m] (a fully
+    developed run has one): solids volume fraction (after Ding et al. Fig. 5), gas and solids
+    axial velocity and granular temperature, coloured per cell on the true polar cells."""
+    geo = an.polar_section(ds)
+    names = [v for v in _TWO_FLUID_SECTION if v[0] in ds]
+    fig = _new_figure(4.4 * len(names), 4.2)
+    axes = np.atleast_1d(fig.subplots(1, len(names)))
+    for ax, (name, label, cmap) in zip(axes, names):
+        _colour_cells(fig, ax, geo, an._field(ds, name, x), label, cmap=cmap)
+        _draw_wall(ax, geo.radius)
+    fig.suptitle(f"{_two_fluid_name(ds)}: {_two_fluid_where(ds, x)} (looking downstream, gravity -y)", fontsize=10)
+    return _save(fig, path)
+
+
+def two_fluid_profiles(ds: xr.Dataset, x: float | None, path) -> Path:
+    """Write profiles along the vertical diameter at the station nearest ``x`` [m] (after Ding
+    et al. Figs. 6, 8 and 10): α_s; gas and solids axial velocity; granular temperature; and
+    the frictional pressure p_f (log scale, where positive)."""
+    geo = an.polar_section(ds)
+    D = 2.0 * geo.radius
+
+    def line(name):
+        y, v = an.vertical_profile(ds, name, x)
+        return v, y / D
+
+    panels = [("solids_fraction", r"$\alpha_s$ [1]", False), ("velocity", r"$u_x$ [m s$^{-1}$]", False),
+              ("granular_temperature", r"$\Theta$ [m$^2$ s$^{-2}$]", True),
+              ("frictional_pressure", r"$p_f$ [Pa]", True)]
+    panels = [p for p in panels if p[0] == "velocity" or p[0] in ds]
+    fig = _new_figure(3.6 * len(panels), 4.4)
+    axes = np.atleast_1d(fig.subplots(1, len(panels), sharey=True))
+    for ax, (name, label, log) in zip(axes, panels):
+        if name == "velocity":
+            for var, style, text in (("gas_ux", "-", "gas"), ("solids_ux", "--", "solids")):
+                if var in ds:
+                    ax.plot(*line(var), style, label=text)
+            ax.legend(fontsize="small")
+        else:
+            v, h = line(name)
+            ax.plot(np.where(v > 0, v, np.nan) if log else v, h, "-")
+            if log and np.any(v > 0):
+                ax.set_xscale("log")
+        ax.set_xlabel(label)
+        ax.set_ylim(-0.5, 0.5)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].set_ylabel("y / D [1]  (top +0.5, bottom -0.5)")
+    fig.suptitle(f"{_two_fluid_name(ds)}: vertical diameter, {_two_fluid_where(ds, x)}", fontsize=10)
+    return _save(fig, path)
+
+
+def two_fluid_convergence(ds: xr.Dataset, path) -> Path:
+    """Write the outer iterations' change (log scale; a marched pipe: of its last station) and,
+    for a marched pipe, the outer iterations each station took against x [m]."""
+    marched = "station_iterations" in ds and ds.sizes.get("x", 1) > 1
+    fig = _new_figure(9.0 if marched else 4.8, 3.8)
+    axes = np.atleast_1d(fig.subplots(1, 2 if marched else 1))
+    v = np.asarray(ds["residual"].values, dtype=float)
+    axes[0].semilogy(np.asarray(ds["iteration"].values), np.where(v > 0, v, np.nan), "-")
+    axes[0].set_xlabel("outer iteration" + (" (last station)" if marched else ""))
+    axes[0].set_ylabel("outer-iteration change [1]")
+    if marched:
+        axes[1].plot(np.asarray(ds["x"].values, float), np.asarray(ds["station_iterations"].values), "o-", ms=2)
+        axes[1].set_xlabel("x [m]")
+        axes[1].set_ylabel("outer iterations of the station")
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+    fig.suptitle(f"{_two_fluid_name(ds)}: convergence (converged = {ds.attrs.get('converged', '?')})", fontsize=10)
+    return _save(fig, path)
+
+
+def two_fluid_development(ds: xr.Dataset, path) -> Path | None:
+    """Write the development along a marched two-fluid pipe: the pressure drop from the inlet
+    [kPa] and the section-mean solids fraction against x [m]. None (nothing written) for a fully
+    developed section."""
+    if ds.sizes.get("x", 1) < 2 or "pressure" not in ds:
+        return None
+    x = np.asarray(ds["x"].values, dtype=float)
+    fig = _new_figure(9.0, 3.6)
+    ax_p, ax_h = fig.subplots(1, 2)
+    ax_p.plot(np.concatenate([[0.0], x]), np.concatenate([[0.0], -np.asarray(ds["pressure"].values, float)]) / 1e3)
+    ax_p.set_ylabel("pressure drop from the inlet [kPa]")
+    if "solids_holdup_x" in ds:
+        ax_h.plot(x, np.asarray(ds["solids_holdup_x"].values, float))
+    ax_h.set_ylabel(r"section-mean $\alpha_s$ [1]")
+    for ax in (ax_p, ax_h):
+        ax.set_xlabel("x [m]")
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{_two_fluid_name(ds)}: development along the pipe", fontsize=10)
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------------------
 # everything
 # ---------------------------------------------------------------------------
 
@@ -410,13 +648,22 @@ def default_station(ds: xr.Dataset) -> float | None:
 def plot_all(ds_or_path, x: float | None = None, outdir=None) -> list[Path]:
     """Write all figures of a dataset (PNG) and return their paths.
 
-    ``ds_or_path``: an xarray Dataset or a NetCDF path. ``x`` [m]: the section (default
-    :func:`default_station`); ValueError if it lies outside the pipe. ``outdir``: default
+    ``ds_or_path``: an xarray Dataset or a NetCDF path. ``outdir``: default
     ``<dataset stem>_figures/`` beside the dataset (``<case name>_figures/`` in the current
-    directory for an in-memory dataset). Files: ``<stem>_section_x<x>.png``,
-    ``<stem>_profiles_x<x>.png`` and, when there is a history, ``<stem>_convergence.png``.
-    The figures are drawn in a temporary directory and moved into ``outdir`` only when all
-    of them succeeded, so an error leaves no partial set (and no new ``outdir``).
+    directory for an in-memory dataset). The figures follow the dataset's ``model`` attribute:
+
+    * Euler-Lagrange (and single-phase gas): ``<stem>_section_x<x>.png``,
+      ``<stem>_profiles_x<x>.png`` and, when there is a history, ``<stem>_convergence.png``;
+      ``x`` [m] the section (default :func:`default_station`);
+    * ``"two-fluid"``: ``<stem>_section[_x<x>].png``, ``<stem>_profiles[_x<x>].png``, a marched
+      pipe's ``<stem>_development.png`` and ``<stem>_convergence.png``; ``x`` a station of a
+      marched pipe (default: its end);
+    * ``"dem-darcy"``: ``<stem>_spacetime.png``, ``<stem>_history.png`` and
+      ``<stem>_slug_profiles.png``; these span the tube and the run's time, so ``x`` must be None.
+
+    ValueError if ``x`` lies outside the pipe (or is given for a dem-darcy dataset). The figures
+    are drawn in a temporary directory and moved into ``outdir`` only when all of them
+    succeeded, so an error leaves no partial set (and no new ``outdir``).
     """
     source = None
     if isinstance(ds_or_path, (str, os.PathLike)):
@@ -427,26 +674,20 @@ def plot_all(ds_or_path, x: float | None = None, outdir=None) -> list[Path]:
         ds = ds_or_path
         if ds.encoding.get("source"):
             source = Path(ds.encoding["source"])
-    stem = source.stem if source is not None else (_case_name(ds).replace(" ", "_") or "eulag")
+    model = str(ds.attrs.get("model", "euler-lagrange"))
+    name = (_slug_case(ds).get("name", "") if model == "dem-darcy" else
+            ds.attrs.get("name", "") if model == "two-fluid" else _case_name(ds))
+    stem = source.stem if source is not None else (str(name).replace(" ", "_") or "eulag")
     if outdir is None:
         outdir = (source.parent if source is not None else Path(".")) / f"{stem}_figures"
     outdir = Path(outdir)
-    if x is None:
-        x = default_station(ds)
-    an.check_station(ds, x)
-    xs = _station(ds, x)
-    tag = f"_x{xs:.4g}m" if xs is not None and ds.sizes.get("x", 1) > 1 else ""
+    draw = _figure_set(ds, model, x, stem, source)
 
-    reference = resolve_reference(ds, source)
     parent = outdir.parent if str(outdir.parent) else Path(".")
     parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", dir=parent))
     try:
-        made = [three_panel(ds, x, tmp / f"{stem}_section{tag}.png"),
-                vertical_profiles(ds, x, tmp / f"{stem}_profiles{tag}.png", reference=reference)]
-        conv = convergence(ds, tmp / f"{stem}_convergence.png")
-        if conv is not None:
-            made.append(conv)
+        made = [p for p in draw(tmp) if p is not None]
         outdir.mkdir(parents=True, exist_ok=True)
         written = []
         for p in made:
@@ -456,3 +697,31 @@ def plot_all(ds_or_path, x: float | None = None, outdir=None) -> list[Path]:
         return written
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _figure_set(ds: xr.Dataset, model: str, x: float | None, stem: str, source):
+    """The function drawing ``model``'s figures into a directory (a list of paths, None for a
+    figure the dataset has nothing for); raises ValueError for a bad ``x`` before any drawing."""
+    if model == "dem-darcy":
+        if x is not None:
+            raise ValueError(f"x = {x:g}: a dem-darcy (slug) dataset has no cross-section station; its "
+                             "figures span the tube and the run's time; allowed: no x")
+        return lambda tmp: [slug_spacetime(ds, tmp / f"{stem}_spacetime.png"),
+                            slug_history(ds, tmp / f"{stem}_history.png"),
+                            slug_profiles_figure(ds, tmp / f"{stem}_slug_profiles.png")]
+    if model == "two-fluid":
+        an.check_station(ds, x)
+        tag = f"_x{_station(ds, x):.4g}m" if ds.sizes.get("x", 1) > 1 else ""
+        return lambda tmp: [two_fluid_section(ds, x, tmp / f"{stem}_section{tag}.png"),
+                            two_fluid_profiles(ds, x, tmp / f"{stem}_profiles{tag}.png"),
+                            two_fluid_development(ds, tmp / f"{stem}_development.png"),
+                            two_fluid_convergence(ds, tmp / f"{stem}_convergence.png")]
+    if x is None:
+        x = default_station(ds)
+    an.check_station(ds, x)
+    xs = _station(ds, x)
+    tag = f"_x{xs:.4g}m" if xs is not None and ds.sizes.get("x", 1) > 1 else ""
+    reference = resolve_reference(ds, source)
+    return lambda tmp: [three_panel(ds, x, tmp / f"{stem}_section{tag}.png"),
+                        vertical_profiles(ds, x, tmp / f"{stem}_profiles{tag}.png", reference=reference),
+                        convergence(ds, tmp / f"{stem}_convergence.png")]

@@ -292,18 +292,22 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
 
     progress(state) is called after every coupling pass (``eulag.coupling.PassState``);
     notify(text) with the loop's remarks (relaxation changes); tracker: a replacement for
-    ``particles.track`` (the Dask front-end); plots: draw the standard figures beside ``out``.
+    ``particles.track`` (the Dask front-end); plots: draw the model's figures beside ``out``
+    (:func:`eulag.plots.plot_all`; a figure that fails is reported through ``notify``, the
+    dataset stays).
     A run that fails raises :class:`RunError` naming what failed (the checkpoint of the last
     complete pass is kept for ``resume``).
     """
     if isinstance(case, ModelCase):
-        return _execute_other(case, out, resume=resume, progress=progress)
-    case = with_parcels(case, parcels)
-    out = Path(out) if out is not None else None
-    if case.particles is None:
-        result = _single_phase(case, out, resume=resume, gas_progress=gas_progress)
+        result = _execute_other(case, out, resume=resume, progress=progress)
+        out = result.out
     else:
-        result = _coupled(case, out, resume=resume, progress=progress, notify=notify, tracker=tracker)
+        case = with_parcels(case, parcels)
+        out = Path(out) if out is not None else None
+        if case.particles is None:
+            result = _single_phase(case, out, resume=resume, gas_progress=gas_progress)
+        else:
+            result = _coupled(case, out, resume=resume, progress=progress, notify=notify, tracker=tracker)
     if plots and out is not None and not result.reused:
         from eulag import plots as plotting
 

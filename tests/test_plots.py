@@ -183,3 +183,108 @@ def test_solved_single_phase_flow_has_no_recirculation_cells(gas_only_dataset):
         ds = ds.load()
     assert an.recirculation_cells(ds) == 0
     assert an.gas_maximum_half(ds) == "neither"
+
+
+# --- the dense-phase models ---------------------------------------------------------------
+
+def slug_dataset(grains=400):
+    """A synthetic run of the paper's open 52.5 cm tube: one slug (porosity 0.5 over 5 cm, 0.9
+    elsewhere, grains at 0.3 m/s inside it) moving at 0.3 m/s, catalogued at every record, the gas
+    pressure falling across it only."""
+    import json
+    import tomllib
+
+    from eulag.config import CASES_DIR
+    from eulag.slug import validate_slug_case
+
+    case = validate_slug_case(tomllib.loads((CASES_DIR / "slug" / "strauss_horizontal.toml").read_text()))
+    t = 13.0 + np.arange(1, 201) * 0.01
+    x = (np.arange(150) + 0.5) * 0.0035
+    centre = 0.1 + 0.3 * (t - t[0])
+    inside = np.abs(x[None, :] - centre[:, None]) < 0.025
+    phi = np.where(inside, 0.5, 0.9)
+    p = np.cumsum(np.where(inside, 1e4 * 0.0035, 0.0)[:, ::-1], axis=1)[:, ::-1]
+    n = t.size
+    ds = xr.Dataset(
+        {"porosity": (("time", "x"), phi), "grain_velocity": (("time", "x"), np.where(inside, 0.3, 0.0)),
+         "gas_pressure": (("time", "x"), p), "wall_normal_stress": (("time", "x"), np.where(inside, 20.0, 2.0)),
+         "granular_temperature": (("time", "x"), np.where(inside, 1e-3, 0.0)),
+         "contact_force": (("time", "x"), np.where(inside, 1e-4, 1e-5)),
+         "pressure_drop": ("time", p[:, 0]), "grains_in_tube": ("time", np.full(n, 3000)),
+         "outflow_mass_rate": ("time", np.full(n, 2.49 / 3600)),
+         "slug_time": ("slug", t), "slug_position": ("slug", centre), "slug_grains": ("slug", np.full(n, grains)),
+         "slug_min_porosity": ("slug", np.full(n, 0.5)), "slug_length": ("slug", np.full(n, 0.05)),
+         "slug_max_velocity": ("slug", np.full(n, 0.3))},
+        coords={"time": t, "x": x}, attrs={"case": json.dumps(case), "model": "dem-darcy"})
+    return ds
+
+
+def test_slug_dataset_gets_spacetime_history_and_slug_profiles(tmp_path):
+    written = plots.plot_all(slug_dataset(), outdir=tmp_path / "figs")
+    assert [p.name for p in written] == ["strauss_horizontal_spacetime.png", "strauss_horizontal_history.png",
+                                         "strauss_horizontal_slug_profiles.png"]
+    assert all(is_png(p) for p in written)
+
+
+def test_slug_profiles_figure_says_when_no_slug_qualifies(tmp_path):
+    """Slugs of 50 grains are below the catalogue's 100: the figure is drawn with a note."""
+    from eulag.slug import slug_profiles
+
+    ds = slug_dataset(grains=50)
+    assert float(slug_profiles(ds, x_window=(0.15, 0.40), t_min=14.0)["samples"].max()) == 0
+    assert is_png(plots.slug_profiles_figure(ds, tmp_path / "p.png"))
+
+
+def test_cli_plot_slug_dataset_and_no_station_for_it(tmp_path, capsys):
+    nc = tmp_path / "slug.nc"
+    slug_dataset().to_netcdf(nc)
+    status, out, err = run_cli(capsys, "plot", nc, "--x", "0.2")
+    assert status == 2 and len(err.splitlines()) == 1 and "no cross-section station" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["slug.nc"]
+    status, out, err = run_cli(capsys, "plot", nc)
+    assert status == 0, err
+    assert len(out.split()) == 3 and all(is_png(p) for p in (tmp_path / "slug_figures").iterdir())
+
+
+def _two_fluid_case(tmp_path, **numerics):
+    """The packaged Q_s = 0.8 case on a 6 x 12 section: its file (the text with the cell counts
+    changed) and its tables."""
+    import re
+    import tomllib
+
+    from eulag.config import CASES_DIR
+
+    text = (CASES_DIR / "two_fluid" / "ding_qs0.8.toml").read_text()
+    text = re.sub(r"(?m)^radial_cells = \d+", "radial_cells = 6", text)
+    text = re.sub(r"(?m)^azimuthal_cells = \d+", "azimuthal_cells = 12", text)
+    path = tmp_path / "tf.toml"
+    path.write_text(text)
+    case = tomllib.loads(text)
+    assert (case["numerics"]["radial_cells"], case["numerics"]["azimuthal_cells"]) == (6, 12)
+    case["numerics"].update(numerics)
+    return path, case
+
+
+def test_run_of_a_two_fluid_case_writes_its_figures(tmp_path, capsys):
+    """`eulag run` draws a dense-phase model's figures beside its dataset, as for the dilute one;
+    `eulag plot` then rejects a station outside the pipe."""
+    path, _ = _two_fluid_case(tmp_path)
+    status, out, err = run_cli(capsys, "run", path, "-o", tmp_path / "tf.nc", "--quiet")
+    assert status == 0, err
+    figs = sorted(p.name for p in (tmp_path / "tf_figures").iterdir())
+    assert figs == ["tf_convergence.png", "tf_profiles.png", "tf_section.png"]
+    assert all(is_png(tmp_path / "tf_figures" / f) for f in figs)
+    status, out, err = run_cli(capsys, "plot", tmp_path / "tf.nc", "--x", "5", "-o", tmp_path / "other")
+    assert status == 2 and "outside the pipe" in err and not (tmp_path / "other").exists()
+
+
+def test_marched_two_fluid_pipe_gets_its_development(tmp_path):
+    from eulag.two_fluid import run_two_fluid
+
+    _, case = _two_fluid_case(tmp_path, mode="developing")
+    case["pipe"]["length"] = 0.02
+    ds = run_two_fluid(case, None)
+    written = plots.plot_all(ds, x=0.01, outdir=tmp_path / "figs")
+    names = [p.name for p in written]
+    assert names[2:] == ["ding_qs0.8_development.png", "ding_qs0.8_convergence.png"]
+    assert names[0].startswith("ding_qs0.8_section_x0.0") and all(is_png(p) for p in written)

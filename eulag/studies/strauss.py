@@ -332,7 +332,9 @@ def extract_metrics(ds, case, outdir: Path | None = None, name: str = "", spacet
     reg = classify_regime(ds, t_min=t_from)
     m.update(reg)
     if spacetime and outdir is not None:
-        m["figures"] = [plot_spacetime(ds, outdir / f"spacetime_{name}.png", title=name)]
+        from eulag.plots import slug_spacetime
+
+        m["figures"] = [slug_spacetime(ds, outdir / f"spacetime_{name}.png", title=name)]
     if spacetime and case.data["tube"]["orientation"] == "horizontal":
         L = float(case.data["tube"]["length_m"])
         dev = []
@@ -356,23 +358,6 @@ def _extractor(args, label, case, outdir, name, spacetime):
                    f"{metrics.get('grains_in_tube', math.nan):.0f} grains, {metrics.get('regime', '?')}")
         return metrics
     return extract
-
-
-def plot_spacetime(ds, png: Path, t0: float = 0.0, t1: float = math.inf, title: str = "") -> Path:
-    """Space–time image of the cross-section porosity of a slug run as SMH Figs. 1 and 4 draw it
-    (dark = dense): time across, the tube axis up."""
-    ds = ds.sel(time=slice(t0, t1 if math.isfinite(t1) else None))
-    fig = _figure()(9, 3.2)
-    ax = fig.subplots()
-    im = ax.pcolormesh(ds["time"].values, ds["x"].values * 100, np.asarray(ds["porosity"].values).T, cmap="gray",
-                       vmin=0.4, vmax=1.0, shading="auto")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("x [cm]")
-    ax.set_title(f"porosity, {title or ''} ({ds.attrs.get('partial', 'finished run')})", fontsize=9)
-    fig.colorbar(im, ax=ax, label="porosity")
-    png = Path(png)
-    fig.savefig(png, dpi=120)
-    return png
 
 
 # ---------------------------------------------------------------------------- the study

@@ -2,7 +2,7 @@
 
     python results/strauss/plot_spacetime.py CASE.toml RUN.nc|RUN.nc.checkpoint OUT.png [--t0 0] [--t1 4]
 
-The figure is :func:`eulag.studies.strauss.plot_spacetime` (the study draws it for its default,
+The figure is :func:`eulag.plots.slug_spacetime` (the study draws it for its default,
 vertical and long runs); this script draws it for any run or a running run's checkpoint.
 """
 
@@ -13,7 +13,7 @@ import tomllib
 import xarray as xr
 
 from eulag.slug import dataset_from_checkpoint
-from eulag.studies.strauss import plot_spacetime
+from eulag.plots import slug_spacetime as plot_spacetime
 
 
 def main():
