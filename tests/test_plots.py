@@ -1,6 +1,6 @@
 """eulag.plots and `eulag plot`: figures are non-empty PNGs for a gas-only dataset (the real
-output schema) and a synthetic particle dataset; bad input exits 2 with one line and leaves
-no figure behind."""
+output schema), a synthetic particle dataset, a synthetic slug run and a (tiny) two-fluid run;
+bad input exits 2 with one line and leaves no figure behind."""
 
 from types import SimpleNamespace
 
@@ -219,13 +219,6 @@ def slug_dataset(grains=400):
     return ds
 
 
-def test_slug_dataset_gets_spacetime_history_and_slug_profiles(tmp_path):
-    written = plots.plot_all(slug_dataset(), outdir=tmp_path / "figs")
-    assert [p.name for p in written] == ["strauss_horizontal_spacetime.png", "strauss_horizontal_history.png",
-                                         "strauss_horizontal_slug_profiles.png"]
-    assert all(is_png(p) for p in written)
-
-
 def test_slug_profiles_figure_says_when_no_slug_qualifies(tmp_path):
     """Slugs of 50 grains are below the catalogue's 100: the figure is drawn with a note."""
     from eulag.slug import slug_profiles
@@ -236,6 +229,8 @@ def test_slug_profiles_figure_says_when_no_slug_qualifies(tmp_path):
 
 
 def test_cli_plot_slug_dataset_and_no_station_for_it(tmp_path, capsys):
+    """A slug run's figures span the tube and the run's time: space-time porosity, time series,
+    averaged slug profiles; --x is refused with one line and nothing drawn."""
     nc = tmp_path / "slug.nc"
     slug_dataset().to_netcdf(nc)
     status, out, err = run_cli(capsys, "plot", nc, "--x", "0.2")
@@ -243,48 +238,33 @@ def test_cli_plot_slug_dataset_and_no_station_for_it(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["slug.nc"]
     status, out, err = run_cli(capsys, "plot", nc)
     assert status == 0, err
-    assert len(out.split()) == 3 and all(is_png(p) for p in (tmp_path / "slug_figures").iterdir())
+    assert [p.rsplit("/", 1)[-1] for p in out.split()] == ["slug_spacetime.png", "slug_history.png",
+                                                           "slug_slug_profiles.png"]
+    assert all(is_png(p) for p in (tmp_path / "slug_figures").iterdir())
 
 
-def _two_fluid_case(tmp_path, **numerics):
-    """The packaged Q_s = 0.8 case on a 6 x 12 section: its file (the text with the cell counts
-    changed) and its tables."""
+def test_run_of_a_two_fluid_case_writes_its_figures(tmp_path, capsys):
+    """`eulag run` draws a dense-phase model's figures beside its dataset, as for the dilute one
+    (a marched pipe of 1 cm on a 6 x 12 section: also its development); `eulag plot` redraws them
+    at another station and rejects one outside the pipe."""
     import re
-    import tomllib
 
     from eulag.config import CASES_DIR
 
     text = (CASES_DIR / "two_fluid" / "ding_qs0.8.toml").read_text()
-    text = re.sub(r"(?m)^radial_cells = \d+", "radial_cells = 6", text)
-    text = re.sub(r"(?m)^azimuthal_cells = \d+", "azimuthal_cells = 12", text)
-    path = tmp_path / "tf.toml"
-    path.write_text(text)
-    case = tomllib.loads(text)
-    assert (case["numerics"]["radial_cells"], case["numerics"]["azimuthal_cells"]) == (6, 12)
-    case["numerics"].update(numerics)
-    return path, case
-
-
-def test_run_of_a_two_fluid_case_writes_its_figures(tmp_path, capsys):
-    """`eulag run` draws a dense-phase model's figures beside its dataset, as for the dilute one;
-    `eulag plot` then rejects a station outside the pipe."""
-    path, _ = _two_fluid_case(tmp_path)
-    status, out, err = run_cli(capsys, "run", path, "-o", tmp_path / "tf.nc", "--quiet")
+    for key, value in (("radial_cells", "6"), ("azimuthal_cells", "12"), ("length", "0.01")):
+        text, n = re.subn(rf"(?m)^{key} = [0-9.]+", f"{key} = {value}", text)
+        assert n == 1, key
+    text = re.sub(r"(?m)^\[numerics\]$", '[numerics]\nmode = "developing"', text)
+    (tmp_path / "tf.toml").write_text(text)
+    status, out, err = run_cli(capsys, "run", tmp_path / "tf.toml", "-o", tmp_path / "tf.nc", "--quiet")
     assert status == 0, err
     figs = sorted(p.name for p in (tmp_path / "tf_figures").iterdir())
-    assert figs == ["tf_convergence.png", "tf_profiles.png", "tf_section.png"]
+    assert figs == ["tf_convergence.png", "tf_development.png", "tf_profiles_x0.01m.png", "tf_section_x0.01m.png"]
     assert all(is_png(tmp_path / "tf_figures" / f) for f in figs)
+    status, out, err = run_cli(capsys, "plot", tmp_path / "tf.nc", "--x", "0.003", "-o", tmp_path / "at")
+    assert status == 0, err
+    assert sorted(p.name for p in (tmp_path / "at").iterdir())[2:] == ["tf_profiles_x0.0025m.png",
+                                                                       "tf_section_x0.0025m.png"]
     status, out, err = run_cli(capsys, "plot", tmp_path / "tf.nc", "--x", "5", "-o", tmp_path / "other")
     assert status == 2 and "outside the pipe" in err and not (tmp_path / "other").exists()
-
-
-def test_marched_two_fluid_pipe_gets_its_development(tmp_path):
-    from eulag.two_fluid import run_two_fluid
-
-    _, case = _two_fluid_case(tmp_path, mode="developing")
-    case["pipe"]["length"] = 0.02
-    ds = run_two_fluid(case, None)
-    written = plots.plot_all(ds, x=0.01, outdir=tmp_path / "figs")
-    names = [p.name for p in written]
-    assert names[2:] == ["ding_qs0.8_development.png", "ding_qs0.8_convergence.png"]
-    assert names[0].startswith("ding_qs0.8_section_x0.0") and all(is_png(p) for p in written)
