@@ -155,7 +155,7 @@ def test_quick_runs_end_to_end_and_report_reuses_the_records(tmp_path, capsys):
         assert math.isfinite(float(r["dp"])) and float(r["grains"]) >= 0
         assert r["regime"] in strauss.REGIMES
     for fig in ("fig3_characteristic_curves", "fig5_mass_flux", "fig6_viscosity", "fig7_friction",
-                "spacetime_strauss__vs-1.0__feed-2.49__quick"):
+                "spacetime_strauss__vs-1.0__feed-2.49__quick", "slug_profiles_strauss__vs-1.0__feed-2.49__quick"):
         assert f"]({fig}.png)" in readme
     for ln in readme.splitlines():  # every figure the README shows exists
         if ln.startswith("!["):

@@ -294,7 +294,8 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
     if extract is not None:
         rec.metrics.update(extract(ds, rec))
     write_record(record, case, rec)
-    _log(args, f"  {label}: {rec.status} after {rec.passes} passes, {rec.time:.1f} s")
+    steps = f" after {rec.passes} passes" if isinstance(case, Case) else ""  # a dense model has no passes
+    _log(args, f"  {label}: {rec.status}{steps}, {rec.time:.1f} s")
     return rec
 
 

@@ -320,7 +320,8 @@ def window_of(case_data: dict) -> tuple[float, tuple[float, float]]:
 def extract_metrics(ds, case, outdir: Path | None = None, name: str = "", spacetime: bool = False) -> dict:
     """What the tables and figures take from a finished slug dataset (:func:`eulag.slug.summarize`,
     :func:`classify_regime`, maximum overlap, grains lost; the development along the tube for the
-    horizontal default and long runs; with ``spacetime`` the space–time figure beside the record)."""
+    horizontal default and long runs; with ``spacetime`` the space–time figure and the averaged slug
+    profiles, over the run's statistics window, beside the record)."""
     from eulag.slug import summarize
 
     t_from, xw = window_of(case.data)
@@ -332,9 +333,10 @@ def extract_metrics(ds, case, outdir: Path | None = None, name: str = "", spacet
     reg = classify_regime(ds, t_min=t_from)
     m.update(reg)
     if spacetime and outdir is not None:
-        from eulag.plots import slug_spacetime
+        from eulag.plots import slug_profiles_figure, slug_spacetime
 
-        m["figures"] = [slug_spacetime(ds, outdir / f"spacetime_{name}.png", title=name)]
+        m["figures"] = [slug_spacetime(ds, outdir / f"spacetime_{name}.png", title=name),
+                        slug_profiles_figure(ds, outdir / f"slug_profiles_{name}.png", x_window=xw, t_min=t_from)]
     if spacetime and case.data["tube"]["orientation"] == "horizontal":
         L = float(case.data["tube"]["length_m"])
         dev = []
