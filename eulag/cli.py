@@ -427,8 +427,10 @@ def cmd_check(args) -> int:
 
     args.parcels = None
     case = _load_case(args)
-    if not isinstance(case, Case):
-        print(f"case {case.name}: model {case.model} (validated)")
+    if not isinstance(case, Case):  # a dense-phase model's own report (validated as it loaded)
+        from eulag import runs
+
+        print(runs.model_check_report(case))
         return EXIT_OK
     print(check.check_report(case))
     return EXIT_OK

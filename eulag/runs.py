@@ -37,8 +37,8 @@ __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged
 #: The models a case can name with its top-level ``model`` key, and the module that runs each.
 MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
 #: The dense-phase models' entry points: (module, validate(dict), run(dict, out, resume=, progress=)).
-#: Each module also defines ``same_case(attrs, dict)``, ``checkpoint_path(out)`` and
-#: ``checkpoint_problem(path, dict)``.
+#: Each module also defines ``same_case(attrs, dict)``, ``checkpoint_path(out)``,
+#: ``checkpoint_problem(path, dict)`` and ``check_report(dict, source)`` (``eulag check``).
 _DENSE = {"dem-darcy": ("eulag.slug", "validate_slug_case", "run_slug"),
           "two-fluid": ("eulag.two_fluid", "validate_two_fluid_case", "run_two_fluid")}
 
@@ -150,6 +150,12 @@ def with_parcels(case: Case, parcels: int | None) -> Case:
         return case
     n = case.numerics
     return case.replace(numerics={"parcels": int(parcels), "parcels_start": min(n.parcels_start, int(parcels))})
+
+
+def model_check_report(case: ModelCase) -> str:
+    """``eulag check`` of a dense-phase case: its model's report (every key resolved, the derived
+    numbers)."""
+    return _model_module(case.model).check_report(case.data, source=case.source)
 
 
 def _model_module(model: str):

@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "gas_force_on_grains", "dataset_from_checkpoint",
+           "check_report",
            "save_state", "read_state", "state_time", "DEFAULTS", "SLUG_POROSITY"]
 
 #: Slug criterion of the catalogue: slices (gas cells along x) with porosity below this.
@@ -887,6 +888,110 @@ def slug_profiles(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, dx_max_d=
          "drag": ("dx_over_d", mean["drag"], dict(units="Pa m-1", long_name="-dP/dx, gas force per unit volume")),
          "samples": ("dx_over_d", cnt, dict(units="1", long_name="slug records averaged")), **extra_vars},
         coords={"dx_over_d": ("dx_over_d", q, dict(units="1", long_name="distance from the slug centre / d"))})
+
+
+# ---------------------------------------------------------------------------------------------
+#: porosity of the paper's slugs (SMH §3.2: minimum slug porosity 0.47-0.49), for the numbers of
+#: :func:`check_report`
+CHECK_SLUG_POROSITY = 0.48
+#: Wall time of the run-time estimate of :func:`check_report` [s per grain in the tube and
+#: simulated second]: the runs of the filled horizontal tube at v_s = 1 m/s over 6 s, one core each
+#: beside one other job on the 2-core x86_64 machine, 0.062-0.066 (2,574-3,636 grains, 955-1,346 s;
+#: results/strauss-filled/grain-weights/eta-6s, the records' wall_time_s)
+CHECK_WALL_S_PER_GRAIN_SECOND = 0.065
+#: the DEM steps per simulated second of those runs (k_n = 1000 N/m, e = 0.5, t_c/30: 36 per 1e-4 s gas step)
+CHECK_REFERENCE_STEPS_PER_S = 36 / 1e-4
+
+_UNITS = {"length_m": "m", "diameter_m": "m", "density_kg_m3": "kg m-3", "stiffness_N_m": "N m-1",
+          "pressure_Pa": "Pa", "viscosity_Pa_s": "Pa s", "superficial_velocity_m_s": "m s-1",
+          "permeability_cap_m2": "m2", "mass_flow_kg_h": "kg h-1", "block_length_m": "m", "plug_length_m": "m",
+          "plug_start_m": "m", "gas_dt_s": "s", "end_time_s": "s", "output_interval_s": "s",
+          "checkpoint_interval_s": "s"}
+
+
+def check_report(case: dict, source=None) -> str:
+    """``eulag check`` of a "dem-darcy" case: every key resolved (defaults marked) and the numbers
+    the run will meet — the grains' mass and contact time, the DEM step, the feed, the gas flow,
+    the Carman-Kozeny permeability and Darcy pressure gradient of a slug, the gas diffusivity,
+    the steps and records of the run, and a wall-time estimate. Raises ValueError as
+    :func:`validate_slug_case` for a bad case."""
+    from darcy.permeability import carman_kozeny, poiseuille_tube_permeability
+    from dem.engine import ContactModel
+    from dem.feed import feed_speed
+
+    c = validate_slug_case(case)
+    name = c.get("name", "")
+    lines = [f"case {name}" + (f" ({source})" if source else "") + ": model dem-darcy", "",
+             "Case (every key; '(default)': the key's default)"]
+    for k in ("name", "description"):
+        if k in c:
+            text = json.dumps(c[k])
+            lines.append(f"  {k} = {text if len(text) <= 90 else text[:87] + '...'}")
+    for sec, keys in DEFAULTS.items():
+        given = case.get(sec, {})
+        for k in keys:
+            v = c[sec][k]
+            unit = f" [{_UNITS[k]}]" if k in _UNITS else ""
+            note = "" if k in given else "  (default)"
+            if (sec, k) == ("gas", "permeability_cap_m2") and not v:
+                note += ": 0 = the empty tube's D_t^2/32"
+            lines.append(f"  {sec}.{k} = {json.dumps(v)}{unit}{note}")
+    t, gr, gas, fd, num = c["tube"], c["grains"], c["gas"], c["feed"], c["numerics"]
+    d, rho, Dt = gr["diameter_m"], gr["density_kg_m3"], t["diameter_m"]
+    area = math.pi * Dt * Dt / 4.0
+    cm = ContactModel(d, rho, gr["stiffness_N_m"], gr["restitution"], gr["friction"], gr["wall_friction"],
+                      tangential_ratio=gr["tangential_damping_ratio"])
+    n_sub = max(1, int(math.ceil(num["gas_dt_s"] / (cm.t_contact / num["steps_per_contact"]) - 1e-9)))
+    dt = num["gas_dt_s"] / n_sub
+    weight = cm.mass * _G
+    lines += ["", "Grains",
+              f"  mass         m = {cm.mass:.4g} [kg]; weight m g = {weight:.4g} [N], per tube cross-section "
+              f"m g / A_t = {weight / area:.4g} [Pa]",
+              f"  contact      t_c = {cm.t_contact:.4g} [s] (k_n = {gr['stiffness_N_m']:g} N/m, e = {gr['restitution']:g}); "
+              f"DEM step {dt:.4g} [s] = t_c / {cm.t_contact / dt:.3g}, {n_sub} per gas step",
+              f"  overlap      an impact at 1 m/s overlaps at most {100 * math.sqrt(0.5 * cm.mass / gr['stiffness_N_m']) / d:.3g} % "
+              "of d (an undamped pair; the runs report their largest overlap)",
+              f"  tangential   gamma_t / gamma_n = {gr['tangential_damping_ratio']:g}, stable below "
+              f"{tangential_damping_limit(gr['restitution'], num['steps_per_contact']):.3g} (a packing in the DEM step)"]
+    if t["periodic"]:
+        lines += ["", "Feed", "  none         periodic tube: the initial plug of "
+                  f"{c['initial']['plug_length_m']:g} m circulates"]
+    else:
+        mdot = fd["mass_flow_kg_h"] / 3600.0
+        vf = feed_speed(mdot, rho, fd["porosity"], Dt)
+        lines += ["", "Feed",
+                  f"  grains       {mdot / cm.mass:.4g} [s-1] ({fd['mass_flow_kg_h']:g} kg/h), pushed in at "
+                  f"{vf:.4g} [m s-1] as a packing of porosity {fd['porosity']:g}"]
+    vs, eta, P0 = gas["superficial_velocity_m_s"], gas["viscosity_Pa_s"], gas["pressure_Pa"]
+    k_slug = float(carman_kozeny(CHECK_SLUG_POROSITY, d))
+    k_feed = float(carman_kozeny(fd["porosity"], d))
+    k_cap = gas["permeability_cap_m2"] or poiseuille_tube_permeability(Dt)
+    dx = t["length_m"] / num["cells_x"]
+    diff = P0 * k_slug / (eta * CHECK_SLUG_POROSITY)
+    scheme = "backward Euler" if num["theta"] == 1.0 else f"theta = {num['theta']:g}"
+    lines += ["", "Gas",
+              f"  flow         v_s = {vs:g} [m s-1] = {vs * area * 6e4:.3g} [l min-1] through the tube",
+              f"  Darcy        Carman-Kozeny kappa = {k_slug:.4g} [m2] in a slug (porosity {CHECK_SLUG_POROSITY}), "
+              f"{k_feed:.4g} [m2] in the feed ({fd['porosity']:g})",
+              f"  slug         a packing at {CHECK_SLUG_POROSITY} at rest: -dP/dx = eta v_s / kappa = "
+              f"{eta * vs / k_slug / 100:.4g} [hPa m-1]; its weight rho_s (1 - phi) g = "
+              f"{rho * (1 - CHECK_SLUG_POROSITY) * _G / 100:.4g} [hPa m-1]",
+              f"  empty tube   kappa cap {k_cap:.4g} [m2]" + (" (D_t^2/32, Poiseuille)" if not gas["permeability_cap_m2"] else "")
+              + f": -dP/dx = {eta * vs / k_cap:.4g} [Pa m-1]",
+              f"  diffusivity  P0 kappa / (eta phi) = {diff:.4g} [m2 s-1] in a slug: a gas cell (dx = {1e3 * dx:.3g} mm) "
+              f"relaxes in dx^2/D = {dx * dx / diff:.3g} [s], the gas step is {num['gas_dt_s']:g} [s] "
+              f"({scheme}, implicit)"]
+    n_gas = int(round(num["end_time_s"] / num["gas_dt_s"]))
+    per_s = 1000.0 * CHECK_WALL_S_PER_GRAIN_SECOND * (n_sub / num["gas_dt_s"]) / CHECK_REFERENCE_STEPS_PER_S
+    lines += ["", "Numerics",
+              f"  grid         {num['cells_x']} x {num['cells_across']} x {num['cells_across']} gas nodes, dx = {1e3 * dx:.3g} [mm]",
+              f"  time         {num['end_time_s']:g} s: {n_gas:,} gas steps, {n_gas * n_sub:,} DEM steps; a record every "
+              f"{num['output_interval_s']:g} s ({int(round(num['end_time_s'] / num['output_interval_s'])):,}), "
+              f"a checkpoint every {num['checkpoint_interval_s']:g} s",
+              f"  cost         about {per_s:.3g} s of wall time per simulated second and 1,000 grains in the tube on one "
+              "core (measured with the default DEM step, scaled by the steps per second; SMH's default tube holds "
+              "about 3,200 grains)"]
+    return "\n".join(lines)
 
 
 def dataset_from_checkpoint(case: dict, checkpoint):

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["validate_two_fluid_case", "run_two_fluid", "problem_from_case", "resolved_case"]
+__all__ = ["validate_two_fluid_case", "run_two_fluid", "problem_from_case", "resolved_case", "check_report"]
 
 _FRICTION_MODELS = ("dartevelle", "srivastava-sundaresan", "berzi", "none")
 
@@ -151,6 +151,79 @@ def validate_two_fluid_case(case: dict) -> None:
                          f"numerics.first_step_diameters ({first!r})")
     if "experiment" in case and not isinstance(case["experiment"], dict):
         raise ValueError(f"experiment = {_fmt(case['experiment'])}: allowed a table")
+
+
+_CHECK_UNITS = {("pipe", "diameter"): "m", ("pipe", "length"): "m", ("gas", "density"): "kg m-3",
+                ("gas", "viscosity"): "Pa s", ("gas", "superficial_velocity"): "m s-1",
+                ("solids", "density"): "kg m-3", ("solids", "diameter"): "m", ("solids", "mass_flow"): "kg s-1",
+                ("friction", "internal_friction_angle_deg"): "degrees", ("friction", "fr"): "Pa",
+                ("friction", "stiffness_over_diameter"): "Pa", ("friction", "viscosity_cap"): "Pa s",
+                ("numerics", "first_step_diameters"): "D", ("numerics", "max_step_diameters"): "D"}
+
+
+def check_report(case: dict, source=None) -> str:
+    """``eulag check`` of a two-fluid case: every key resolved (defaults marked) and the numbers
+    the run will meet — the gas Reynolds number and single-phase pressure gradient (Colebrook),
+    the particles' terminal velocity, response time, Stokes and Archimedes numbers, the mass
+    loading, the paper's inlet (Hinkle's solids velocity, eq. 22, and α_s, eq. 23), the mesh and,
+    for a marched pipe, its stations. Raises ValueError as :func:`validate_two_fluid_case`."""
+    from fluids.drag import v_terminal
+    from fluids.friction import Colebrook
+
+    from tfm.developing import axial_stations
+    from tfm.inlet import hinkle_1953_solids_velocity, inlet_solids_fraction
+
+    c = resolved_case(case)
+    lines = [f"case {c.get('name', '')}" + (f" ({source})" if source else "") + ": model two-fluid", "",
+             "Case (every key; '(default)': the key's default)"]
+    for k in ("name", "description"):
+        if k in c:
+            text = json.dumps(c[k])
+            lines.append(f"  {k} = {text if len(text) <= 90 else text[:87] + '...'}")
+    for sec, keys in SCHEMA.items():
+        given = case.get(sec, {})
+        for k in keys:
+            unit = f" [{_CHECK_UNITS[sec, k]}]" if (sec, k) in _CHECK_UNITS else ""
+            lines.append(f"  {sec}.{k} = {json.dumps(c[sec][k])}{unit}" + ("" if k in given else "  (default)"))
+    for k, v in c.get("experiment", {}).items():
+        lines.append(f"  experiment.{k} = {json.dumps(v)}")
+    p, g, s, n = c["pipe"], c["gas"], c["solids"], c["numerics"]
+    D, L, rho, mu, U = p["diameter"], p["length"], g["density"], g["viscosity"], g["superficial_velocity"]
+    rho_s, d_s, m_s = s["density"], s["diameter"], s["mass_flow"]
+    area = math.pi * D * D / 4.0
+    re = rho * U * D / mu
+    f_d = Colebrook(re, 0.0)
+    dpdx = f_d * rho * U * U / (2.0 * D)
+    v_t = float(v_terminal(D=d_s, rhop=rho_s, rho=rho, mu=mu))
+    tau = rho_s * d_s * d_s / (18.0 * mu)
+    ar = rho * (rho_s - rho) * 9.80665 * d_s ** 3 / mu ** 2
+    u_in = float(hinkle_1953_solids_velocity(U, d_s, rho_s, rho, D))
+    lines += ["", "Gas",
+              f"  Reynolds     Re = rho U_g D / mu = {re:.4g} [1]",
+              f"  single phase f_D = {f_d:.4g} [1] (Colebrook, smooth): -dp/dx = {dpdx:.4g} [Pa m-1], "
+              f"Delta p = {dpdx * L / 1e3:.4g} [kPa] over L = {L:g} [m]",
+              "", "Solids",
+              f"  terminal     v_t = {v_t:.4g} [m s-1] (fluids.drag.v_terminal); Re_p = {rho * v_t * d_s / mu:.3g} [1] "
+              f"at v_t; Archimedes Ar = {ar:.4g} [1]",
+              f"  tau_p        {tau:.4g} [s] (Stokes); St = tau_p U_g / D = {tau * U / D:.4g} [1]",
+              f"  loading      M_s / (rho U_g A) = {m_s / (rho * U * area):.4g} [1] "
+              f"(gas {rho * U * area:.4g} [kg s-1], solids {m_s:g} [kg s-1])",
+              f"  inlet        Hinkle's u_s = {u_in:.4g} [m s-1] (eq. 22), alpha_s = "
+              f"{float(inlet_solids_fraction(m_s, rho_s, u_in, D)):.4g} [1] (eq. 23)"]
+    if "pressure_drop" in c.get("experiment", {}):
+        dp = float(c["experiment"]["pressure_drop"])
+        lines.append(f"  measured     Delta p = {dp / 1e3:.4g} [kPa] over the pipe ({dp / L:.4g} [Pa m-1]; "
+                     f"{dp / (dpdx * L):.3g} x the gas alone)")
+    lines += ["", "Numerics",
+              f"  section      {n['radial_cells']} x {n['azimuthal_cells']} cells, wall ring at y+ = {n['first_cell_yplus']:g}; "
+              f"{n['turbulence']}; at most {n['max_iterations']} outer iterations to a change of {n['tolerance']:g}"]
+    if n["mode"] == "developing":
+        xs = axial_stations(L, n["first_step_diameters"] * D, n["step_growth"], n["max_step_diameters"] * D)
+        lines.append(f"  march        {len(xs)} stations over {L:g} m (first step {1e3 * xs[0]:.3g} mm, growth "
+                     f"{n['step_growth']:g}, at most {n['max_step_diameters']:g} D), from the paper's inlet")
+    else:
+        lines.append(f"  mode         fully developed (the pressure gradient times L = {L:g} m gives Delta p)")
+    return "\n".join(lines)
 
 
 def problem_from_case(case: dict):

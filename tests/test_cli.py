@@ -228,3 +228,42 @@ def test_commit_names_code_changes_not_result_changes(tmp_path):
     assert eulag._commit_of(tmp_path) == head
     (tmp_path / "eulag" / "m.py").write_text("x = 2\n")
     assert eulag._commit_of(tmp_path) == f"{head} (with uncommitted changes)"
+
+
+def test_check_of_a_slug_case_prints_the_resolved_case_and_its_numbers(capsys):
+    """`eulag check` of a dense-phase case: every key with its default marked, and derived numbers
+    recomputed here from their textbook forms."""
+    status, out, err = run_cli(capsys, "check", ROOT / "cases" / "slug" / "strauss_horizontal.toml")
+    assert status == 0, err
+    assert "grains.tangential_damping_ratio = 1.0  (default)" in out and "feed.mass_flow_kg_h = 2.49 [kg h-1]" in out
+    m = 937.0 * math.pi / 6.0 * 1.4e-3 ** 3
+    assert f"m = {m:.4g} [kg]" in out
+    ln_e = math.log(0.5)
+    zeta = -ln_e / math.sqrt(math.pi ** 2 + ln_e ** 2)
+    t_c = math.pi / (math.sqrt(1000.0 / (0.5 * m)) * math.sqrt(1.0 - zeta ** 2))  # pair of reduced mass m/2
+    assert f"t_c = {t_c:.4g} [s]" in out
+    assert f"{2.49 / 3600.0 / m:.4g} [s-1]" in out
+    kappa = 1.4e-3 ** 2 * 0.48 ** 3 / (180.0 * 0.52 ** 2)  # Carman-Kozeny
+    assert f"kappa = {kappa:.4g} [m2] in a slug" in out
+    assert f"{6.73e-5 / kappa / 100:.4g} [hPa m-1]" in out
+
+
+def test_check_of_a_two_fluid_case_prints_the_resolved_case_and_its_numbers(capsys):
+    import re
+    import tomllib
+
+    path = ROOT / "cases" / "two_fluid" / "ding_qs0.8.toml"
+    c = tomllib.loads(path.read_text())
+    status, out, err = run_cli(capsys, "check", path)
+    assert status == 0, err
+    assert "walls.law = \"ding\"  (default)" in out
+    D, rho, mu, U = c["pipe"]["diameter"], c["gas"]["density"], c["gas"]["viscosity"], c["gas"]["superficial_velocity"]
+    d, rho_s = c["solids"]["diameter"], c["solids"]["density"]
+    assert f"Re = rho U_g D / mu = {rho * U * D / mu:.4g}" in out
+    u_s = U * (1.0 - 0.68 * d ** 0.92 * rho_s ** 0.5 * rho ** -0.2 * D ** -0.54)  # Hinkle (1953)
+    assert f"u_s = {u_s:.4g} [m s-1]" in out
+    assert f"alpha_s = {4 * c['solids']['mass_flow'] / (rho_s * u_s * math.pi * D * D):.4g}" in out
+    # the single-phase gradient within 3 % of Haaland's explicit form of Colebrook
+    f_h = (-1.8 * math.log10(6.9 / (rho * U * D / mu))) ** -2
+    dpdx = float(re.search(r"-dp/dx = ([0-9.e+]+) \[Pa m-1\]", out).group(1))
+    assert dpdx == pytest.approx(f_h * rho * U * U / (2 * D), rel=0.03)
