@@ -210,7 +210,8 @@ def cmd_run(args) -> int:
               + ("; a first run compiles the particle kernels (about a minute)" if coupled else ""),
               flush=True)
     try:
-        result = runs.execute(case, out, resume=args.resume, progress=progress, notify=notify, tracker=tracker,
+        result = runs.execute(case, out, resume=args.resume, progress=None if args.quiet else progress,
+                              notify=notify, tracker=tracker,
                               plots=(coupled or not isinstance(case, Case)) and not args.no_plots,
                               gas_progress=not args.quiet and sys.stderr.isatty())
     except runs.RunError as exc:
@@ -219,6 +220,8 @@ def cmd_run(args) -> int:
         if bar is not None:
             bar.close()
         _close_dask(client)
+    if result.figure_error:  # also with --quiet: the user asked for figures and has none
+        print(f"eulag: warning: {result.figure_error}", file=sys.stderr)
     if result.reused:
         if not args.quiet:
             print(f"{out}: already a finished run of case {case.name}; nothing to do")
@@ -554,11 +557,10 @@ def cmd_plot(args) -> int:
             ds = opened.load()
     except Exception as exc:
         raise _Fail(f"{path}: cannot be read as a NetCDF dataset ({exc})", EXIT_BAD_INPUT) from None
+    problem = plots.dataset_problem(ds)
+    if problem is not None:
+        raise _Fail(f"{path}: {problem}", EXIT_BAD_INPUT)
     model = str(ds.attrs.get("model", "euler-lagrange"))
-    needed = ("porosity", "time", "x", "case") if model == "dem-darcy" else ("gas_ux", "y", "z", "cell_area")
-    missing = [v for v in needed if v not in ds.variables and v not in ds.attrs]
-    if missing:
-        raise _Fail(f"{path}: not an eulag dataset (no {', '.join(missing)})", EXIT_BAD_INPUT)
     if model == "dem-darcy" and args.x is not None:
         raise _Fail(f"--x {args.x:g}: a dem-darcy (slug) dataset has no cross-section station (its figures "
                     "span the tube and the run's time); allowed: no --x", EXIT_BAD_INPUT)

@@ -30,14 +30,14 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import MaxNLocator, NullFormatter
 from matplotlib.tri import Triangulation
 
 from eulag import analysis as an
 
-__all__ = ["three_panel", "vertical_profiles", "convergence", "plot_all", "read_reference",
+__all__ = ["dataset_problem", "three_panel", "vertical_profiles", "convergence", "plot_all", "read_reference",
            "resolve_reference", "default_station", "slug_spacetime", "slug_history",
-           "slug_profiles_figure", "two_fluid_section", "two_fluid_profiles", "two_fluid_development",
+           "slug_profiles_figure", "slug_profile_data", "two_fluid_section", "two_fluid_profiles", "two_fluid_development",
            "two_fluid_convergence"]
 
 
@@ -406,9 +406,33 @@ def convergence(ds: xr.Dataset, path) -> Path | None:
 # dense-phase models
 # ---------------------------------------------------------------------------
 
-#: the middle of the paper's tube over which SMH average their slugs (15-40 cm of 52.5 cm),
-#: scaled with the tube length
-_SLUG_MIDDLE = (0.15 / 0.525, 0.40 / 0.525)
+#: what each model's figures read from a dataset
+_NEEDS = {"euler-lagrange": ("gas_ux", "y", "z", "cell_area"),
+          "two-fluid": ("gas_ux", "solids_ux", "solids_fraction", "y", "z", "cell_area"),
+          "dem-darcy": ("time", "x", "porosity", "grain_velocity", "gas_pressure", "pressure_drop", "grains_in_tube",
+                        "slug_time", "slug_position", "slug_grains")}
+_SLUG_CASE_KEYS = (("tube", "length_m"), ("tube", "periodic"), ("grains", "diameter_m"), ("numerics", "end_time_s"),
+                   ("numerics", "output_interval_s"))
+
+
+def dataset_problem(ds: xr.Dataset) -> str | None:
+    """Why :func:`plot_all` cannot draw ``ds`` (one line: the model, what is missing), or None."""
+    import json
+
+    model = str(ds.attrs.get("model", "euler-lagrange"))
+    if model not in _NEEDS:
+        return f"model attribute {model!r}: allowed {', '.join(_NEEDS)}"
+    missing = [v for v in _NEEDS[model] if v not in ds.variables]
+    if missing:
+        return f"not an eulag {model} dataset (no {', '.join(missing)})"
+    if model == "dem-darcy":
+        try:
+            c = json.loads(ds.attrs["case"])
+            for sec, key in _SLUG_CASE_KEYS:
+                c[sec][key]
+        except (KeyError, TypeError, ValueError) as exc:
+            return f"its 'case' attribute is not a dem-darcy case ({type(exc).__name__}: {' '.join(str(exc).split())})"
+    return None
 
 
 def _slug_case(ds: xr.Dataset) -> dict:
@@ -422,6 +446,7 @@ def _slug_title(ds: xr.Dataset) -> str:
     g, t = c.get("gas", {}), c.get("tube", {})
     bits = [c.get("name", "dem-darcy run"), t.get("orientation", ""),
             f"v_s = {g.get('superficial_velocity_m_s', float('nan')):g} m/s" if "superficial_velocity_m_s" in g else "",
+            "periodic" if t.get("periodic") else
             f"feed {c['feed']['mass_flow_kg_h']:g} kg/h" if c.get("feed", {}).get("mass_flow_kg_h") else ""]
     text = ", ".join(b for b in bits if b)
     partial = ds.attrs.get("partial")
@@ -469,29 +494,35 @@ def slug_history(ds: xr.Dataset, path) -> Path:
     return _save(fig, path)
 
 
+def slug_profile_data(ds: xr.Dataset, x_window=None, t_min=None, min_grains: int = 100):
+    """What :func:`slug_profiles_figure` draws: ``(profiles, records, x_window, t_min)``, the
+    averaged profiles of :func:`eulag.slug.slug_profiles`, the number of slug records averaged,
+    and the window. Defaults: :func:`eulag.slug.statistics_window` (the window the strauss
+    study measures in), or the second half of the records of a run that has not reached it."""
+    from eulag.slug import slug_profiles, statistics_window
+
+    t = np.asarray(ds["time"].values, dtype=float)
+    t_from, xw = statistics_window(_slug_case(ds), times=t)
+    if t.size and t_from > t[-1]:  # a partial run (from a checkpoint) that has not reached its window
+        t_from = float(t[0] + 0.5 * (t[-1] - t[0]))
+    x_window = xw if x_window is None else x_window
+    t_min = t_from if t_min is None else t_min
+    prof = slug_profiles(ds, x_window=x_window, t_min=t_min, min_grains=min_grains)
+    n = int(np.max(prof["samples"].values)) if prof["samples"].size else 0
+    return prof, n, x_window, t_min
+
+
 def slug_profiles_figure(ds: xr.Dataset, path, x_window=None, t_min=None, min_grains: int = 100) -> Path:
     """Write the averaged slug profiles against the distance from the slug centre in grain
     diameters (SMH Figs. 12-16; Δx > 0 ahead of the slug): porosity, axial grain velocity, the
     gas force per unit volume −∂P'/∂x, and where the dataset has them the wall normal stress,
     the granular temperature and the mean contact force per grain (:func:`eulag.slug.slug_profiles`).
 
-    Slugs of ≥ ``min_grains`` grains centred in ``x_window`` [m] (default: the whole tube of a
-    periodic case, else the middle 15-40 cm of the paper's 52.5 cm, scaled with the length) at
-    time ≥ ``t_min`` [s] (default: the second half of the records). Without such a slug the
-    figure says so.
+    Slugs of ≥ ``min_grains`` grains centred in ``x_window`` [m] at time ≥ ``t_min`` [s]; the
+    defaults are those of :func:`slug_profile_data`. Without such a slug the figure says so.
     """
-    from eulag.slug import slug_profiles
-
-    c = _slug_case(ds)
-    L = float(c["tube"]["length_m"])
-    if x_window is None:
-        x_window = (0.0, L) if c["tube"].get("periodic") else (_SLUG_MIDDLE[0] * L, _SLUG_MIDDLE[1] * L)
-    t = np.asarray(ds["time"].values, dtype=float)
-    if t_min is None:
-        t_min = float(t[0] + 0.5 * (t[-1] - t[0])) if t.size else 0.0
-    prof = slug_profiles(ds, x_window=x_window, t_min=t_min, min_grains=min_grains)
+    prof, n, x_window, t_min = slug_profile_data(ds, x_window, t_min, min_grains)
     q = np.asarray(prof["dx_over_d"].values, dtype=float)
-    n = int(np.max(prof["samples"].values)) if prof["samples"].size else 0
     panels = [("porosity", "porosity [1]", 1.0, "Fig. 12"), ("grain_velocity", "grain velocity [m s$^{-1}$]", 1.0, "Fig. 13"),
               ("drag", r"$-\partial P'/\partial x$ [hPa m$^{-1}$]", 0.01, "Fig. 14"),
               ("wall_normal_stress", "wall normal stress [Pa]", 1.0, "Fig. 15"),
@@ -516,8 +547,8 @@ def slug_profiles_figure(ds: xr.Dataset, path, x_window=None, t_min=None, min_gr
         if ref:
             ax.set_title(f"after SMH {ref}", fontsize=8)
         ax.grid(alpha=0.3)
-    fig.suptitle(f"{_slug_title(ds)}\naveraged slug: {n} slug records (≥ {min_grains} grains, centred in "
-                 f"{100 * x_window[0]:.3g}-{100 * x_window[1]:.3g} cm, t ≥ {t_min:.4g} s)", fontsize=10)
+    fig.suptitle(f"{_slug_title(ds)}\naveraged slug: {n} slug record{'' if n == 1 else 's'} (≥ {min_grains} grains, "
+                 f"centred in {100 * x_window[0]:.3g}-{100 * x_window[1]:.3g} cm, t ≥ {t_min:.4g} s)", fontsize=10)
     return _save(fig, path)
 
 
@@ -584,6 +615,7 @@ def two_fluid_profiles(ds: xr.Dataset, x: float | None, path) -> Path:
             ax.plot(np.where(v > 0, v, np.nan) if log else v, h, "-")
             if log and np.any(v > 0):
                 ax.set_xscale("log")
+                ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel(label)
         ax.set_ylim(-0.5, 0.5)
         ax.grid(alpha=0.3, which="both")
@@ -592,11 +624,14 @@ def two_fluid_profiles(ds: xr.Dataset, x: float | None, path) -> Path:
     return _save(fig, path)
 
 
-def two_fluid_convergence(ds: xr.Dataset, path) -> Path:
+def two_fluid_convergence(ds: xr.Dataset, path) -> Path | None:
     """Write the outer iterations' change (log scale; a marched pipe: of its last station) and,
-    for a marched pipe, the outer iterations each station took against x [m]."""
+    for a marched pipe, the outer iterations each station took against x [m]. None (nothing
+    written) without a ``residual`` history."""
+    if "residual" not in ds or not ds["residual"].size:
+        return None
     marched = "station_iterations" in ds and ds.sizes.get("x", 1) > 1
-    fig = _new_figure(9.0 if marched else 4.8, 3.8)
+    fig = _new_figure(9.0 if marched else 6.4, 3.8)
     axes = np.atleast_1d(fig.subplots(1, 2 if marched else 1))
     v = np.asarray(ds["residual"].values, dtype=float)
     axes[0].semilogy(np.asarray(ds["iteration"].values), np.where(v > 0, v, np.nan), "-")
@@ -608,7 +643,7 @@ def two_fluid_convergence(ds: xr.Dataset, path) -> Path:
         axes[1].set_ylabel("outer iterations of the station")
     for ax in axes:
         ax.grid(alpha=0.3, which="both")
-    fig.suptitle(f"{_two_fluid_name(ds)}: convergence (converged = {ds.attrs.get('converged', '?')})", fontsize=10)
+    fig.suptitle(f"{_two_fluid_name(ds)}:\nconvergence (converged = {ds.attrs.get('converged', '?')})", fontsize=10)
     return _save(fig, path)
 
 
@@ -661,7 +696,8 @@ def plot_all(ds_or_path, x: float | None = None, outdir=None) -> list[Path]:
     * ``"dem-darcy"``: ``<stem>_spacetime.png``, ``<stem>_history.png`` and
       ``<stem>_slug_profiles.png``; these span the tube and the run's time, so ``x`` must be None.
 
-    ValueError if ``x`` lies outside the pipe (or is given for a dem-darcy dataset). The figures
+    ValueError if the dataset lacks what its figures need (:func:`dataset_problem`) or ``x`` lies
+    outside the pipe (or is given for a dem-darcy dataset). The figures
     are drawn in a temporary directory and moved into ``outdir`` only when all of them
     succeeded, so an error leaves no partial set (and no new ``outdir``).
     """
@@ -674,6 +710,9 @@ def plot_all(ds_or_path, x: float | None = None, outdir=None) -> list[Path]:
         ds = ds_or_path
         if ds.encoding.get("source"):
             source = Path(ds.encoding["source"])
+    problem = dataset_problem(ds)
+    if problem is not None:
+        raise ValueError(problem)
     model = str(ds.attrs.get("model", "euler-lagrange"))
     name = (_slug_case(ds).get("name", "") if model == "dem-darcy" else
             ds.attrs.get("name", "") if model == "two-fluid" else _case_name(ds))

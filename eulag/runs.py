@@ -80,6 +80,7 @@ class RunResult:
     dataset : xarray.Dataset (written to ``out`` when an output was given); converged;
     stop_reason : the loop's one-line verdict (which criterion failed, by how much);
     reused : the output already held this finished run (``resume``); figures : PNG paths;
+    figure_error : why the figures were not written ("" when they were or none were asked for);
     loop / field : the coupling loop or the single-phase gas field (None when reused);
     timings : wall-clock seconds of the run's stages.
     """
@@ -91,6 +92,7 @@ class RunResult:
     stop_reason: str
     reused: bool = False
     figures: list = _field(default_factory=list)
+    figure_error: str = ""
     loop: Any = None
     field: Any = None
     mesh: Any = None
@@ -299,8 +301,7 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
     progress(state) is called after every coupling pass (``eulag.coupling.PassState``);
     notify(text) with the loop's remarks (relaxation changes); tracker: a replacement for
     ``particles.track`` (the Dask front-end); plots: draw the model's figures beside ``out``
-    (:func:`eulag.plots.plot_all`; a figure that fails is reported through ``notify``, the
-    dataset stays).
+    (:func:`eulag.plots.plot_all`; if they fail, the dataset stays and ``figure_error`` says why).
     A run that fails raises :class:`RunError` naming what failed (the checkpoint of the last
     complete pass is kept for ``resume``).
     """
@@ -320,8 +321,8 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
         try:
             result.figures = list(plotting.plot_all(out))
         except Exception as exc:  # noqa: BLE001 - the dataset is written; a figure must not hide it
-            if notify is not None:
-                notify(f"figures not written ({exc}); the dataset {out} is complete")
+            result.figure_error = (f"figures not written ({type(exc).__name__}: {' '.join(str(exc).split())}); "
+                                   f"the dataset {out} is complete")
     return result
 
 

@@ -61,11 +61,17 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "gas_force_on_grains", "dataset_from_checkpoint",
-           "check_report",
+           "check_report", "statistics_window",
            "save_state", "read_state", "state_time", "DEFAULTS", "SLUG_POROSITY"]
 
 #: Slug criterion of the catalogue: slices (gas cells along x) with porosity below this.
 SLUG_POROSITY = 0.6
+#: Length of SMH's tube and the middle of it over which they average their slugs [m]; the
+#: statistics window scales it with a tube's length (:func:`statistics_window`)
+PAPER_LENGTH, MIDDLE = 0.525, (0.15, 0.40)
+#: A run from an empty tube is measured from t = min(end/2, FILL_TIME_S) [s] (the paper's tube has
+#: filled by about 6 s at the default feed)
+FILL_TIME_S = 6.0
 
 _G = 9.81
 
@@ -788,6 +794,28 @@ def run_slug(case: dict, out, resume=False, progress=True):
     if ckpt.exists():
         ckpt.unlink()
     return ds
+
+
+def statistics_window(case: dict, times=None) -> tuple[float, tuple[float, float]]:
+    """(t_from [s], (x0, x1) [m]) over which a run's slug statistics are taken: from an empty tube
+    t ≥ min(end/2, FILL_TIME_S); a run continued from a state (``initial.state``) over the second
+    half of its own time, t ≥ t0 + (end − t0)/2, t0 the state's time (read from the state file, or
+    when ``times``, the dataset's record times, are given, one output interval before the first
+    record); slugs centred in the middle of the tube (15–40 cm of the paper's 52.5 cm, scaled with
+    the length), or anywhere in a periodic tube."""
+    end = float(case["numerics"]["end_time_s"])
+    L = float(case["tube"]["length_m"])
+    if case["tube"].get("periodic"):
+        xw = (0.0, L)
+    else:
+        xw = (MIDDLE[0] * L / PAPER_LENGTH, MIDDLE[1] * L / PAPER_LENGTH)
+    if case.get("initial", {}).get("state"):
+        if times is not None and len(times):
+            t0 = float(times[0]) - float(case["numerics"]["output_interval_s"])
+        else:
+            t0 = state_time(case)
+        return t0 + 0.5 * (end - t0), xw
+    return min(0.5 * end, FILL_TIME_S), xw
 
 
 def summarize(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, link_records=5):

@@ -188,7 +188,7 @@ def test_solved_single_phase_flow_has_no_recirculation_cells(gas_only_dataset):
 # --- the dense-phase models ---------------------------------------------------------------
 
 def slug_dataset(grains=400):
-    """A synthetic run of the paper's open 52.5 cm tube: one slug (porosity 0.5 over 5 cm, 0.9
+    """A synthetic 2 s run of the paper's open 52.5 cm tube: one slug (porosity 0.5 over 5 cm, 0.9
     elsewhere, grains at 0.3 m/s inside it) moving at 0.3 m/s, catalogued at every record, the gas
     pressure falling across it only."""
     import json
@@ -197,10 +197,12 @@ def slug_dataset(grains=400):
     from eulag.config import CASES_DIR
     from eulag.slug import validate_slug_case
 
-    case = validate_slug_case(tomllib.loads((CASES_DIR / "slug" / "strauss_horizontal.toml").read_text()))
-    t = 13.0 + np.arange(1, 201) * 0.01
+    raw = tomllib.loads((CASES_DIR / "slug" / "strauss_horizontal.toml").read_text())
+    raw["numerics"]["end_time_s"] = 2.0
+    case = validate_slug_case(raw)
+    t = np.arange(1, 201) * 0.01
     x = (np.arange(150) + 0.5) * 0.0035
-    centre = 0.1 + 0.3 * (t - t[0])
+    centre = 0.3 * t - 0.1
     inside = np.abs(x[None, :] - centre[:, None]) < 0.025
     phi = np.where(inside, 0.5, 0.9)
     p = np.cumsum(np.where(inside, 1e4 * 0.0035, 0.0)[:, ::-1], axis=1)[:, ::-1]
@@ -219,6 +221,16 @@ def slug_dataset(grains=400):
     return ds
 
 
+def test_slug_profiles_average_in_the_studys_window():
+    """The figure's default window is the strauss study's: t >= min(end/2, 6 s) = 1 s, slugs centred
+    in 15-40 cm; the synthetic slug's centre is there from t = 1.00 to 1.66 s (67 records)."""
+    prof, n, xw, t_min = plots.slug_profile_data(slug_dataset())
+    assert (n, t_min) == (67, 1.0) and xw == pytest.approx((0.15, 0.40))
+    assert float(prof["porosity"].sel(dx_over_d=0.0)) == pytest.approx(0.5)
+    assert float(prof["porosity"].sel(dx_over_d=30.0)) == pytest.approx(0.9)
+    assert float(prof["drag"].sel(dx_over_d=0.0)) == pytest.approx(1e4)
+
+
 def test_slug_profiles_figure_says_when_no_slug_qualifies(tmp_path):
     """Slugs of 50 grains are below the catalogue's 100: the figure is drawn with a note."""
     from eulag.slug import slug_profiles
@@ -226,6 +238,20 @@ def test_slug_profiles_figure_says_when_no_slug_qualifies(tmp_path):
     ds = slug_dataset(grains=50)
     assert float(slug_profiles(ds, x_window=(0.15, 0.40), t_min=14.0)["samples"].max()) == 0
     assert is_png(plots.slug_profiles_figure(ds, tmp_path / "p.png"))
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda ds: ds.drop_vars("gas_pressure"), "not an eulag dem-darcy dataset (no gas_pressure)"),
+    (lambda ds: ds.assign_attrs(case="{}"), "not a dem-darcy case (KeyError"),
+    (lambda ds: ds.assign_attrs(case="not json"), "not a dem-darcy case (JSONDecodeError"),
+    (lambda ds: ds.assign_attrs(model="two-fluid"), "two-fluid dataset (no gas_ux, solids_ux, solids_fraction"),
+])
+def test_cli_plot_of_an_incomplete_dense_dataset_is_bad_input(tmp_path, capsys, change, words):
+    nc = tmp_path / "bad.nc"
+    change(slug_dataset()).to_netcdf(nc)
+    status, out, err = run_cli(capsys, "plot", nc)
+    assert status == 2 and len(err.splitlines()) == 1 and words in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.nc"]
 
 
 def test_cli_plot_slug_dataset_and_no_station_for_it(tmp_path, capsys):
@@ -268,3 +294,24 @@ def test_run_of_a_two_fluid_case_writes_its_figures(tmp_path, capsys):
                                                                        "tf_section_x0.0025m.png"]
     status, out, err = run_cli(capsys, "plot", tmp_path / "tf.nc", "--x", "5", "-o", tmp_path / "other")
     assert status == 2 and "outside the pipe" in err and not (tmp_path / "other").exists()
+
+
+def test_a_failing_figure_keeps_the_dataset_and_says_so_even_quietly(tmp_path, capsys, monkeypatch):
+    import re
+
+    from eulag.config import CASES_DIR
+
+    text = (CASES_DIR / "two_fluid" / "ding_qs0.8.toml").read_text()
+    text = re.sub(r"(?m)^radial_cells = \d+", "radial_cells = 4", text)
+    text = re.sub(r"(?m)^azimuthal_cells = \d+", "azimuthal_cells = 8", text)
+    (tmp_path / "tf.toml").write_text(text)
+
+    def broken(ds, x, path):
+        raise RuntimeError("no canvas\nat all")
+
+    monkeypatch.setattr(plots, "two_fluid_section", broken)
+    status, out, err = run_cli(capsys, "run", tmp_path / "tf.toml", "-o", tmp_path / "tf.nc", "--quiet")
+    assert status == 0 and out == ""
+    assert err.splitlines() == [f"eulag: warning: figures not written (RuntimeError: no canvas at all); the dataset "
+                                f"{tmp_path / 'tf.nc'} is complete"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tf.nc", "tf.toml"]

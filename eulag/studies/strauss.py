@@ -98,9 +98,6 @@ QUICK_CHANGES = {"tube": {"length_m": 0.07}, "numerics": {"cells_x": 20, "end_ti
                  "output_interval_s": 0.005, "checkpoint_interval_s": 0.01}}
 DEFAULT_VS, DEFAULT_FEED, DEFAULT_ETA_CP, DEFAULT_MU = 1.0, 2.49, 0.0673, 0.5
 #: the paper's tube and the middle window of the slug statistics in it [m]
-PAPER_LENGTH, MIDDLE = 0.525, (0.15, 0.40)
-#: t_from = min(end/2, FILL_TIME_S)
-FILL_TIME_S = 6.0
 #: simulated time of a run continued from a filled-tube state (--from-state); its statistics
 #: are taken over the second half
 FROM_STATE_WINDOW_S = 3.0
@@ -303,18 +300,12 @@ def study_cases(quick: bool = False, groups=None, feeds=None, velocities=None, w
 
 # ---------------------------------------------------------------------------- one run
 def window_of(case_data: dict) -> tuple[float, tuple[float, float]]:
-    """(t_from [s], (x0, x1) [m]) of a run's statistics: t ≥ min(end/2, FILL_TIME_S) from an
-    empty tube, the second half of a run continued from a state (t ≥ t0 + (end − t0)/2); slugs
-    centred in the middle of the tube (15–40 cm of the paper's 52.5 cm, scaled with the length)."""
-    from eulag.slug import state_time
+    """(t_from [s], (x0, x1) [m]) of a run's statistics (:func:`eulag.slug.statistics_window`: from
+    an empty tube t ≥ min(end/2, 6 s), a run continued from a state over the second half of its
+    window; slugs centred in 15–40 cm of the paper's 52.5 cm, scaled with the length)."""
+    from eulag.slug import statistics_window
 
-    end = float(case_data["numerics"]["end_time_s"])
-    L = float(case_data["tube"]["length_m"])
-    xw = (MIDDLE[0] * L / PAPER_LENGTH, MIDDLE[1] * L / PAPER_LENGTH)
-    if case_data.get("initial", {}).get("state"):
-        t0 = state_time(case_data)
-        return t0 + 0.5 * (end - t0), xw
-    return min(0.5 * end, FILL_TIME_S), xw
+    return statistics_window(case_data)
 
 
 def extract_metrics(ds, case, outdir: Path | None = None, name: str = "", spacetime: bool = False) -> dict:
