@@ -947,23 +947,12 @@ def check_report(case: dict, source=None) -> str:
     from dem.engine import ContactModel
     from dem.feed import feed_speed
 
+    from eulag.check import resolved_case_lines
+
     c = validate_slug_case(case)
-    name = c.get("name", "")
-    lines = [f"case {name}" + (f" ({source})" if source else "") + ": model dem-darcy", "",
-             "Case (every key; '(default)': the key's default)"]
-    for k in ("name", "description"):
-        if k in c:
-            text = json.dumps(c[k])
-            lines.append(f"  {k} = {text if len(text) <= 90 else text[:87] + '...'}")
-    for sec, keys in DEFAULTS.items():
-        given = case.get(sec, {})
-        for k in keys:
-            v = c[sec][k]
-            unit = f" [{_UNITS[k]}]" if k in _UNITS else ""
-            note = "" if k in given else "  (default)"
-            if (sec, k) == ("gas", "permeability_cap_m2") and not v:
-                note += ": 0 = the empty tube's D_t^2/32"
-            lines.append(f"  {sec}.{k} = {json.dumps(v)}{unit}{note}")
+    rows = [(f"{sec}.{k}", c[sec][k], _UNITS.get(k, ""), k in case.get(sec, {})) for sec, keys in DEFAULTS.items()
+            for k in keys]
+    lines = resolved_case_lines(c, "dem-darcy", source, rows)
     t, gr, gas, fd, num = c["tube"], c["grains"], c["gas"], c["feed"], c["numerics"]
     d, rho, Dt = gr["diameter_m"], gr["density_kg_m3"], t["diameter_m"]
     area = math.pi * Dt * Dt / 4.0

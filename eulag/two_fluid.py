@@ -173,20 +173,13 @@ def check_report(case: dict, source=None) -> str:
     from tfm.developing import axial_stations
     from tfm.inlet import hinkle_1953_solids_velocity, inlet_solids_fraction
 
+    from eulag.check import resolved_case_lines
+
     c = resolved_case(case)
-    lines = [f"case {c.get('name', '')}" + (f" ({source})" if source else "") + ": model two-fluid", "",
-             "Case (every key; '(default)': the key's default)"]
-    for k in ("name", "description"):
-        if k in c:
-            text = json.dumps(c[k])
-            lines.append(f"  {k} = {text if len(text) <= 90 else text[:87] + '...'}")
-    for sec, keys in SCHEMA.items():
-        given = case.get(sec, {})
-        for k in keys:
-            unit = f" [{_CHECK_UNITS[sec, k]}]" if (sec, k) in _CHECK_UNITS else ""
-            lines.append(f"  {sec}.{k} = {json.dumps(c[sec][k])}{unit}" + ("" if k in given else "  (default)"))
-    for k, v in c.get("experiment", {}).items():
-        lines.append(f"  experiment.{k} = {json.dumps(v)}")
+    rows = [(f"{sec}.{k}", c[sec][k], _CHECK_UNITS.get((sec, k), ""), k in case.get(sec, {}))
+            for sec, keys in SCHEMA.items() for k in keys]
+    rows += [(f"experiment.{k}", v, "", True) for k, v in c.get("experiment", {}).items()]
+    lines = resolved_case_lines(c, "two-fluid", source, rows)
     p, g, s, n = c["pipe"], c["gas"], c["solids"], c["numerics"]
     D, L, rho, mu, U = p["diameter"], p["length"], g["density"], g["viscosity"], g["superficial_velocity"]
     rho_s, d_s, m_s = s["density"], s["diameter"], s["mass_flow"]
