@@ -234,6 +234,9 @@ def export_vts(dataset_path: str | os.PathLike, vts_path: str | os.PathLike) -> 
         reason = " ".join(str(exc).split())
         raise ExportError(f"{dataset_path}: cannot read the dataset ({reason})") from None
     with ds:
+        if ds.attrs.get("model") == "dem-darcy":
+            raise ExportError(f"{dataset_path}: a dem-darcy (slug) dataset holds cross-section means along the "
+                              "tube, not the cells of a pipe; allowed: a gas, Euler-Lagrange or two-fluid dataset")
         edges = {dim: _edges(ds, dim) for dim in _CELL_DIMS}
         missing = [dim for dim, e in edges.items() if e is None]
         if missing:

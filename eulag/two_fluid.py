@@ -340,6 +340,13 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed, march=
         "y": xr.Variable(("r", "theta"), mesh.y, {"units": "m", "long_name": "vertical coordinate (up)"}),
         "z": xr.Variable(("r", "theta"), mesh.z, {"units": "m", "long_name": "horizontal coordinate"}),
         "cell_area": xr.Variable(("r", "theta"), mesh.cell_area, {"units": "m2", "long_name": "cell area"}),
+        # the cell faces (eulag export): a marched station holds the step that ends at it
+        "x_edge": xr.Variable(("x_edge",), np.concatenate([[0.0], xs]) if march is not None else np.array([0.0, L]),
+                              {"units": "m", "long_name": "axial position of the cell faces"}),
+        "r_edge": xr.Variable(("r_edge",), np.asarray(mesh.r_edges, float),
+                              {"units": "m", "long_name": "radius of the ring faces (last: the wall)"}),
+        "theta_edge": xr.Variable(("theta_edge",), np.asarray(mesh.theta_edges, float),
+                                  {"units": "rad", "long_name": "azimuthal angle of the sector faces"}),
     }
     dp_meas = c.get("experiment", {}).get("pressure_drop")
     if isinstance(dp_meas, (int, float)) and dp_meas > 0:

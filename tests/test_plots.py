@@ -294,6 +294,24 @@ def test_run_of_a_two_fluid_case_writes_its_figures(tmp_path, capsys):
                                                                        "tf_section_x0.0025m.png"]
     status, out, err = run_cli(capsys, "plot", tmp_path / "tf.nc", "--x", "5", "-o", tmp_path / "other")
     assert status == 2 and "outside the pipe" in err and not (tmp_path / "other").exists()
+    # the marched pipe as cells for ParaView: one cell per station, ring and sector, from x = 0 to L
+    import meshio
+
+    status, out, err = run_cli(capsys, "export", tmp_path / "tf.nc", tmp_path / "tf.vtu")
+    assert status == 0, err
+    ds = xr.open_dataset(tmp_path / "tf.nc")
+    mesh = meshio.read(tmp_path / "tf.vtu")
+    assert sum(len(c.data) for c in mesh.cells) == ds.sizes["x"] * 6 * 12
+    assert mesh.points[:, 0].min() == 0.0 and mesh.points[:, 0].max() == pytest.approx(0.01)
+    assert "solids_fraction" in mesh.cell_data
+
+
+def test_a_slug_dataset_is_not_exported_as_cells(tmp_path, capsys):
+    nc = tmp_path / "slug.nc"
+    slug_dataset().to_netcdf(nc)
+    status, out, err = run_cli(capsys, "export", nc, tmp_path / "slug.vtu")
+    assert status == 2 and len(err.splitlines()) == 1 and "cross-section means along the tube" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["slug.nc"]
 
 
 def test_a_failing_figure_keeps_the_dataset_and_says_so_even_quietly(tmp_path, capsys, monkeypatch):
