@@ -294,8 +294,10 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
     if extract is not None:
         rec.metrics.update(extract(ds, rec))
     write_record(record, case, rec)
-    steps = f" after {rec.passes} passes" if isinstance(case, Case) else ""  # a dense model has no passes
-    _log(args, f"  {label}: {rec.status}{steps}, {rec.time:.1f} s")
+    if isinstance(case, Case):
+        _log(args, f"  {label}: {rec.status} after {rec.passes} passes, {rec.time:.1f} s")
+    else:  # a dense-phase model runs to its end time or stops (no passes, nothing to converge)
+        _log(args, f"  {label}: {'finished' if rec.status == 'converged' else rec.status}, {rec.time:.1f} s")
     return rec
 
 
