@@ -296,8 +296,10 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
     write_record(record, case, rec)
     if isinstance(case, Case):
         _log(args, f"  {label}: {rec.status} after {rec.passes} passes, {rec.time:.1f} s")
-    else:  # a dense-phase model runs to its end time or stops (no passes, nothing to converge)
-        _log(args, f"  {label}: {'finished' if rec.status == 'converged' else rec.status}, {rec.time:.1f} s")
+    elif getattr(case, "model", "") == "dem-darcy" and rec.status == "converged":  # runs to its end time
+        _log(args, f"  {label}: finished, {rec.time:.1f} s")
+    else:
+        _log(args, f"  {label}: {rec.status}, {rec.time:.1f} s")
     return rec
 
 
