@@ -87,7 +87,7 @@ DEFAULTS = {
     "numerics": {"cells_x": 150, "cells_across": 2, "steps_per_contact": 30, "gas_dt_s": 1e-4, "theta": 1.0,
                  "end_time_s": 4.0, "output_interval_s": 0.01, "checkpoint_interval_s": 0.5, "seed": 1,
                  "min_solid_fraction_force": 0.05, "parallel": False, "porosity_weights": "grain",
-                 "grain_interpolation": "normalised"},
+                 "grain_interpolation": "normalised", "overlap_limit": 0.05},
 }
 
 _CHOICES = {("tube", "orientation"): ("horizontal", "vertical"), ("gas", "inlet"): ("flux", "source"),
@@ -105,7 +105,14 @@ _RANGES = {
     ("gas", "superficial_velocity_m_s"): (0.0, 1e3, True), ("numerics", "theta"): (0.5, 1.0, True),
     ("numerics", "min_solid_fraction_force"): (1e-6, 1.0, True), ("initial", "plug_start_m"): (0.0, 1e3, True),
     ("initial", "plug_length_m"): (0.0, 1e3, True), ("grains", "tangential_damping_ratio"): (0.0, 100.0, True),
+    ("numerics", "overlap_limit"): (0.0, 1.0, False),
 }
+#: numerics.overlap_limit: the largest grain overlap / d a run may reach and still count as
+#: finished. The stiffness is chosen for overlaps of about 1 % of d (docs/slug.md); the runs of
+#: the paper's system reach 0.6-2.9 % in slug flow, but 9-37 % where a resting bulk jams the tube
+#: and the feed, a kinematic piston, keeps compressing it (results/strauss-filled/grain-weights/
+#: feed-9.95). Beyond a few per cent the linear contacts and the porosity they leave no longer
+#: describe the packing: the run ends with converged = false and says so.
 
 
 #: Largest eigenvalue of the tangential damping of a packing over a single pair's (7 γ_t/m), with every
@@ -616,12 +623,15 @@ def checkpoint_path(out) -> Path:
 def _comparable(c: dict) -> dict:
     """A resolved case in the form stored cases are compared in: keys that came after stored
     runs are dropped at the value those runs had — ``initial.state`` when empty (they all
-    started from an empty tube), ``numerics.grain_interpolation`` when "normalised"."""
+    started from an empty tube), ``numerics.grain_interpolation`` when "normalised",
+    ``numerics.overlap_limit`` at its default (it judges a run, it does not change it)."""
     same = json.loads(json.dumps(c))
     if not same.get("initial", {}).get("state", None):
         same.get("initial", {}).pop("state", None)
     if same.get("numerics", {}).get("grain_interpolation", None) == "normalised":
         same["numerics"].pop("grain_interpolation")
+    if same.get("numerics", {}).get("overlap_limit", None) == DEFAULTS["numerics"]["overlap_limit"]:
+        same["numerics"].pop("overlap_limit")
     return same
 
 
@@ -630,6 +640,7 @@ def _checkpoint_key(c: dict) -> str:
     ``numerics.end_time_s`` (a run may be continued to a later end)."""
     same = _comparable(c)
     same.get("numerics", {}).pop("end_time_s", None)
+    same.get("numerics", {}).pop("overlap_limit", None)  # judges the run's end, not its course
     return json.dumps(same, sort_keys=True)
 
 
@@ -743,8 +754,9 @@ def same_case(attrs: dict, case: dict) -> bool:
 
 def run_slug(case: dict, out, resume=False, progress=True):
     """Run a "dem-darcy" case; write the transient dataset to ``out`` (NetCDF; None: not written,
-    no checkpoints) and return it.  Attributes ``converged`` ("true" unless grains were lost)
-    and ``stop_reason`` give the run layer its verdict.
+    no checkpoints) and return it.  Attributes ``converged`` ("true" unless grains were lost or
+    the largest overlap went beyond ``numerics.overlap_limit``, :func:`problem_overlap`) and
+    ``stop_reason`` give the run layer its verdict.
 
     ``<out>.checkpoint`` receives the state every ``numerics.checkpoint_interval_s``; with
     ``resume=True`` the run continues from it (bit-identical to an uninterrupted run), else an
@@ -783,8 +795,12 @@ def run_slug(case: dict, out, resume=False, progress=True):
                   f"wall {last_report - t_start:.0f} s", flush=True)
     ds = sim.dataset()
     ds.attrs["wall_time_s"] = time.time() - t_start
-    ds.attrs["converged"] = "true" if sim.lost == 0 else "false"
-    ds.attrs["stop_reason"] = "finished" if sim.lost == 0 else f"finished with {sim.lost} grains lost"
+    problems = [f"{sim.lost} grains lost"] if sim.lost else []
+    overlap = problem_overlap(ds, c["numerics"]["overlap_limit"])
+    if overlap:
+        problems.append(overlap)
+    ds.attrs["converged"] = "false" if problems else "true"
+    ds.attrs["stop_reason"] = "finished, but " + "; ".join(problems) if problems else "finished"
     if out is None:
         return ds
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -794,6 +810,20 @@ def run_slug(case: dict, out, resume=False, progress=True):
     if ckpt.exists():
         ckpt.unlink()
     return ds
+
+
+def problem_overlap(ds, limit: float) -> str:
+    """"" if the largest grain overlap of the run (``max_overlap_per_d``) stayed within ``limit``
+    (a fraction of d; ``numerics.overlap_limit``), else one line saying how far and when it went
+    beyond, and why that happens."""
+    ovl = np.asarray(ds["max_overlap_per_d"].values, dtype=float)
+    if not ovl.size or not np.nanmax(ovl) > limit:
+        return ""
+    first = float(ds["time"].values[int(np.argmax(ovl > limit))])
+    return (f"the largest grain overlap reached {100 * float(np.nanmax(ovl)):.3g} % of d (numerics.overlap_limit "
+            f"{100 * limit:g} %, first exceeded at t = {first:.4g} s): the linear contacts no longer describe the "
+            "packing; where a resting bulk jams the tube, the feed, pushed in at a fixed speed, compresses it "
+            "without bound, and the run measures that compression, not the conveying")
 
 
 def statistics_window(case: dict, times=None) -> tuple[float, tuple[float, float]]:

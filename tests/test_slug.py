@@ -135,6 +135,7 @@ def test_packaged_cases_validate(name):
     ("tube", "orientation", "inclined", "tube.orientation = 'inclined': allowed"),
     ("feed", "colour", 1, "feed.colour = 1: allowed keys"),
     ("grains", "tangential_damping_ratio", 2.0, "grains.tangential_damping_ratio = 2.0: allowed < 1.74 at"),
+    ("numerics", "overlap_limit", 0, "numerics.overlap_limit = 0.0: allowed 0.0 < value <= 1.0"),
 ])
 def test_validation_one_line_errors(section, key, value, msg):
     case = _case("strauss_horizontal")
@@ -160,6 +161,20 @@ def test_periodic_case_runs_without_losses(tmp_path):
     assert (ds.grains_in_tube == ds.grains_in_tube[0]).all()  # periodic: nothing enters or leaves
     assert float(ds.pressure_drop[-1]) > 0
     assert not (tmp_path / "p.nc.checkpoint").exists()
+
+
+def test_an_overlap_beyond_the_limit_is_an_unconverged_run():
+    """A run whose largest overlap goes beyond numerics.overlap_limit ends with converged = false
+    and says how far and when; within the limit it is finished."""
+    case = _short_periodic(end=0.01)
+    ds = slug.run_slug(case, None, progress=False)
+    worst = float(ds.max_overlap_per_d.max())
+    assert ds.attrs["converged"] == "true" and ds.attrs["stop_reason"] == "finished" and 0 < worst < 0.05
+    case["numerics"]["overlap_limit"] = 0.5 * worst
+    ds = slug.run_slug(case, None, progress=False)
+    assert ds.attrs["converged"] == "false"
+    assert ds.attrs["stop_reason"].startswith(f"finished, but the largest grain overlap reached {100 * worst:.3g} % of "
+                                              f"d (numerics.overlap_limit {100 * 0.5 * worst:g} %, first exceeded at t =")
 
 
 def test_resume_after_kill_is_bit_identical(tmp_path, monkeypatch):
@@ -248,7 +263,8 @@ def test_run_continued_from_a_state_equals_the_uninterrupted_run(tmp_path, monke
 
 
 @pytest.mark.parametrize("section,key,other", [("initial", "state", None),
-                                               ("numerics", "grain_interpolation", "printed")])
+                                               ("numerics", "grain_interpolation", "printed"),
+                                               ("numerics", "overlap_limit", None)])
 def test_cases_stored_before_a_key_existed_are_the_same_case(tmp_path, section, key, other):
     """A dataset or checkpoint of a run made before a key existed (its stored case has no such
     key) is the same case as today's with the key at the value those runs had -- initial.state
