@@ -97,7 +97,6 @@ QUICK_FRICTIONS = (0.1, 0.5, 0.9)
 QUICK_CHANGES = {"tube": {"length_m": 0.07}, "numerics": {"cells_x": 20, "end_time_s": 0.02,
                  "output_interval_s": 0.005, "checkpoint_interval_s": 0.01}}
 DEFAULT_VS, DEFAULT_FEED, DEFAULT_ETA_CP, DEFAULT_MU = 1.0, 2.49, 0.0673, 0.5
-#: the paper's tube and the middle window of the slug statistics in it [m]
 #: simulated time of a run continued from a filled-tube state (--from-state); its statistics
 #: are taken over the second half
 FROM_STATE_WINDOW_S = 3.0
