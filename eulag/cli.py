@@ -232,8 +232,10 @@ def cmd_run(args) -> int:
         elif result.field is not None:
             print(_summary(case, result.mesh, result.field, out, result.timings, result.timings.get("write", 0.0),
                            result.dataset))
-        else:
+        elif result.converged:
             print(f"eulag {eulag.__version__}: case {case.name} ({case.model}): {result.stop_reason}; written {out}")
+        else:  # the reason follows on stderr (the error line below)
+            print(f"eulag {eulag.__version__}: case {case.name} ({case.model}): written {out}")
         if result.figures:
             print(f"  figures      {Path(result.figures[0]).parent}/ ({len(result.figures)} PNG)")
     if not result.converged:

@@ -820,10 +820,13 @@ def problem_overlap(ds, limit: float) -> str:
     if not ovl.size or not np.nanmax(ovl) > limit:
         return ""
     first = float(ds["time"].values[int(np.argmax(ovl > limit))])
+    case = json.loads(ds.attrs["case"]) if "case" in ds.attrs else {}
+    fed = not case.get("tube", {}).get("periodic", False)
     return (f"the largest grain overlap reached {100 * float(np.nanmax(ovl)):.3g} % of d (numerics.overlap_limit "
             f"{100 * limit:g} %, first exceeded at t = {first:.4g} s): the linear contacts no longer describe the "
-            "packing; where a resting bulk jams the tube, the feed, pushed in at a fixed speed, compresses it "
-            "without bound, and the run measures that compression, not the conveying")
+            "packing" + ("; so it goes where a resting bulk jams the tube and the feed, pushed in at a fixed speed, "
+                         "compresses it without bound (the run then measures that compression, not the conveying)"
+                         if fed else ""))
 
 
 def statistics_window(case: dict, times=None) -> tuple[float, tuple[float, float]]:
@@ -964,7 +967,7 @@ _UNITS = {"length_m": "m", "diameter_m": "m", "density_kg_m3": "kg m-3", "stiffn
           "pressure_Pa": "Pa", "viscosity_Pa_s": "Pa s", "superficial_velocity_m_s": "m s-1",
           "permeability_cap_m2": "m2", "mass_flow_kg_h": "kg h-1", "block_length_m": "m", "plug_length_m": "m",
           "plug_start_m": "m", "gas_dt_s": "s", "end_time_s": "s", "output_interval_s": "s",
-          "checkpoint_interval_s": "s"}
+          "checkpoint_interval_s": "s", "overlap_limit": "d"}
 
 
 def check_report(case: dict, source=None) -> str:

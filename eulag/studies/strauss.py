@@ -580,6 +580,10 @@ def _fig_curves(outdir, plan, records):
     runs_ = _runs(plan, records, "curves")
     if not runs_:
         return None
+    # runs that ended unconverged (e.g. a jammed tube beyond numerics.overlap_limit) are drawn
+    # with a grey cross over their regime marker
+    unconverged = {(i["feed"], i["vs"]) for n, (grp, i, c) in plan.items()
+                   if "curves" in grp and records[n].status == "not converged"}
     fig = _figure()(10, 4)
     ax, ax2 = fig.subplots(1, 2)
     feeds = sorted({i["feed"] for i, _ in runs_})
@@ -592,7 +596,16 @@ def _fig_curves(outdir, plan, records):
         for x, y, r, nn in pts:
             ax.plot([x], [y], MARKERS.get(r, "x"), color=colors[f], mfc="none", ms=8)
             ax2.plot([nn], [y], MARKERS.get(r, "x"), color=colors[f], mfc="none", ms=8)
+            if (f, x) in unconverged:
+                ax.plot([x], [y], "x", color="0.4", ms=10)
+                ax2.plot([nn], [y], "x", color="0.4", ms=10)
     _regime_legend(ax)
+    if unconverged:
+        ax.plot([], [], "x", color="0.4", label="not converged (e.g. overlap limit)")
+    dps = [m["pressure_drop_Pa"] for _, m in runs_ if m["pressure_drop_Pa"] > 0]
+    if dps and max(dps) > 20 * min(dps):  # a jammed tube's Δp beside slug flow's
+        ax.set_yscale("log")
+        ax2.set_yscale("log")
     ax.set_xlabel("superficial gas velocity v_s [m/s]")
     ax.set_ylabel("Δp [hPa]")
     ax.set_xscale("log")
