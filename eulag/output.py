@@ -168,7 +168,13 @@ def set_converged(ds: xr.Dataset, converged: bool) -> None:
 
 def is_converged(ds) -> bool:
     """The run's verdict from a dataset (the ``converged`` flag variable, or the global
-    attribute of datasets written before it)."""
+    attribute of datasets written before it). A slug (dem-darcy) dataset is judged again by
+    today's rules (:func:`eulag.slug.verdict`), so a run stored before a rule existed is not
+    taken as finished when it breaks it."""
+    if ds.attrs.get("model") == "dem-darcy":
+        from eulag.slug import verdict
+
+        return verdict(ds)[0]
     if "converged" in ds.variables:
         return bool(int(ds["converged"].values))
     return ds.attrs.get("converged") == "true"

@@ -756,7 +756,7 @@ def run_slug(case: dict, out, resume=False, progress=True):
     """Run a "dem-darcy" case; write the transient dataset to ``out`` (NetCDF; None: not written,
     no checkpoints) and return it.  Attributes ``converged`` ("true" unless grains were lost or
     the largest overlap went beyond ``numerics.overlap_limit``, :func:`problem_overlap`) and
-    ``stop_reason`` give the run layer its verdict.
+    ``stop_reason`` give the run layer its verdict (:func:`verdict`).
 
     ``<out>.checkpoint`` receives the state every ``numerics.checkpoint_interval_s``; with
     ``resume=True`` the run continues from it (bit-identical to an uninterrupted run), else an
@@ -795,12 +795,9 @@ def run_slug(case: dict, out, resume=False, progress=True):
                   f"wall {last_report - t_start:.0f} s", flush=True)
     ds = sim.dataset()
     ds.attrs["wall_time_s"] = time.time() - t_start
-    problems = [f"{sim.lost} grains lost"] if sim.lost else []
-    overlap = problem_overlap(ds, c["numerics"]["overlap_limit"])
-    if overlap:
-        problems.append(overlap)
-    ds.attrs["converged"] = "false" if problems else "true"
-    ds.attrs["stop_reason"] = "finished, but " + "; ".join(problems) if problems else "finished"
+    converged, reason = verdict(ds)
+    ds.attrs["converged"] = "true" if converged else "false"
+    ds.attrs["stop_reason"] = reason
     if out is None:
         return ds
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -812,10 +809,33 @@ def run_slug(case: dict, out, resume=False, progress=True):
     return ds
 
 
+def verdict(ds) -> tuple[bool, str]:
+    """(converged, stop_reason) of a finished slug dataset by today's rules: no grain lost, and the
+    largest overlap within the case's ``numerics.overlap_limit`` (:func:`problem_overlap`)."""
+    limit = validate_slug_case(_comparable_stored(json.loads(ds.attrs["case"])))["numerics"]["overlap_limit"]
+    lost = int(np.asarray(ds["grains_lost"].values)) if "grains_lost" in ds else int(ds.attrs.get("grains_lost", 0))
+    problems = [f"{lost} grains lost"] if lost else []
+    overlap = problem_overlap(ds, limit)
+    if overlap:
+        problems.append(overlap)
+    return (not problems), ("finished, but " + "; ".join(problems) if problems else "finished")
+
+
+def _comparable_stored(c: dict) -> dict:
+    """A stored case (a dataset's ``case`` attribute) as input to :func:`validate_slug_case`: the
+    state file of a continued run may be gone, and only the verdict's keys are wanted."""
+    c = json.loads(json.dumps(c))
+    c.pop("model", None)
+    c.get("initial", {}).pop("state", None)
+    return {"model": "dem-darcy", **c}
+
+
 def problem_overlap(ds, limit: float) -> str:
     """"" if the largest grain overlap of the run (``max_overlap_per_d``) stayed within ``limit``
     (a fraction of d; ``numerics.overlap_limit``), else one line saying how far and when it went
     beyond, and why that happens."""
+    if "max_overlap_per_d" not in ds:
+        return ""
     ovl = np.asarray(ds["max_overlap_per_d"].values, dtype=float)
     if not ovl.size or not np.nanmax(ovl) > limit:
         return ""

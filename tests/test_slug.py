@@ -14,6 +14,7 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
+import xarray as xr
 import pytest
 
 from dem import FREE, TentTransfer
@@ -175,6 +176,34 @@ def test_an_overlap_beyond_the_limit_is_an_unconverged_run():
     assert ds.attrs["converged"] == "false"
     assert ds.attrs["stop_reason"].startswith(f"finished, but the largest grain overlap reached {100 * worst:.3g} % of "
                                               f"d (numerics.overlap_limit {100 * 0.5 * worst:g} %, first exceeded at t =")
+
+
+def test_a_stored_run_beyond_the_overlap_limit_is_judged_again(tmp_path, capsys):
+    """A dataset written before numerics.overlap_limit existed says converged = true; on reuse
+    (eulag run --resume, the studies) it is judged by today's rule, so it is not taken as a
+    finished run: --resume runs the case again."""
+    import re
+
+    from eulag.cli import main
+    from eulag.output import is_converged
+
+    text = (CASES / "periodic_slug.toml").read_text()
+    text, n = re.subn(r"(?m)^end_time_s = [0-9.]+", "end_time_s = 0.01", text)
+    assert n == 1
+    (tmp_path / "p.toml").write_text(text)
+    assert main(["run", str(tmp_path / "p.toml"), "-o", str(tmp_path / "p.nc"), "--quiet", "--no-plots"]) == 0
+    with xr.open_dataset(tmp_path / "p.nc") as stored:
+        ds = stored.load()
+    assert is_converged(ds)
+    ds["max_overlap_per_d"].values[0] = 0.37  # as a jammed tube's, in a run stored as finished
+    ds.to_netcdf(tmp_path / "p.nc")
+    with xr.open_dataset(tmp_path / "p.nc") as stored:
+        assert stored.attrs["converged"] == "true" and not is_converged(stored)
+    assert slug.verdict(ds)[1].startswith("finished, but the largest grain overlap reached 37 % of d")
+    assert main(["run", str(tmp_path / "p.toml"), "-o", str(tmp_path / "p.nc"), "--resume", "--quiet",
+                 "--no-plots"]) == 0
+    with xr.open_dataset(tmp_path / "p.nc") as rerun:
+        assert is_converged(rerun) and float(rerun["max_overlap_per_d"][0]) < 0.05
 
 
 def test_resume_after_kill_is_bit_identical(tmp_path, monkeypatch):
