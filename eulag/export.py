@@ -239,6 +239,9 @@ def export_vts(dataset_path: str | os.PathLike, vts_path: str | os.PathLike) -> 
                               "tube, not the cells of a pipe; allowed: a gas, Euler-Lagrange or two-fluid dataset")
         edges = {dim: _edges(ds, dim) for dim in _CELL_DIMS}
         missing = [dim for dim, e in edges.items() if e is None]
+        if missing and ds.attrs.get("model") == "two-fluid":
+            raise ExportError(f"{dataset_path}: a two-fluid dataset written before the datasets kept their cell "
+                              f"faces (no {', '.join(d + '_edge' for d in missing)}); run the case again to export it")
         if missing:
             raise ExportError(f"{dataset_path}: not a result dataset of eulag (no cell faces of "
                               f"{', '.join(missing)})")

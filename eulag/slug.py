@@ -976,9 +976,10 @@ def slug_profiles(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, dx_max_d=
 #: :func:`check_report`
 CHECK_SLUG_POROSITY = 0.48
 #: Wall time of the run-time estimate of :func:`check_report` [s per grain in the tube and
-#: simulated second]: the runs of the filled horizontal tube at v_s = 1 m/s over 6 s, one core each
-#: beside one other job on the 2-core x86_64 machine, 0.062-0.066 (2,574-3,636 grains, 955-1,346 s;
-#: results/strauss-filled/grain-weights/eta-6s, the records' wall_time_s)
+#: simulated second]: the three runs of the filled horizontal tube at v_s = 1 m/s over 6 s, one
+#: thread each beside a scene run on the 2-core x86_64 machine, 0.062-0.066 (955-1,346 s over 6 s
+#: with 2,574-3,636 grains, the means over each run's second half; results/strauss-filled/
+#: grain-weights/eta-6s, the records' wall_time_s and grains_in_tube); the upper end is taken
 CHECK_WALL_S_PER_GRAIN_SECOND = 0.065
 #: the DEM steps per simulated second of those runs (k_n = 1000 N/m, e = 0.5, t_c/30: 36 per 1e-4 s gas step)
 CHECK_REFERENCE_STEPS_PER_S = 36 / 1e-4
