@@ -40,7 +40,6 @@ from eulag.config import _SECTIONS, Case, _fmt, _public_fields
 
 __all__ = [
     "check_report",
-    "resolved_case_lines",
     "saltation_velocities",
     "saltation_line",
     "total_pressure_drop_line",
@@ -413,21 +412,4 @@ def check_report(case: Case) -> str:
         out.append(f"  run time     about {_minutes(typical)} ({typical:.3g} [s]), up to "
                    f"{_minutes(worst)} ({worst:.3g} [s]): {basis}")
     return "\n".join(out)
-
-
-def resolved_case_lines(case: dict, model: str, source, rows) -> list[str]:
-    """The head of a dense-phase model's ``eulag check`` report: the case's name, file and model,
-    its name and description, then every key, ``rows`` of (dotted key, value, unit, given): the
-    value as TOML writes it, the unit in brackets, "(default)" where the file does not set it."""
-    import json
-
-    lines = [f"case {case.get('name', '')}" + (f" ({source})" if source else "") + f": model {model}", "",
-             "Case (every key; '(default)': the key's default)"]
-    for k in ("name", "description"):
-        if k in case:
-            text = json.dumps(case[k])
-            lines.append(f"  {k} = {text if len(text) <= 90 else text[:87] + '...'}")
-    for key, value, unit, given in rows:
-        lines.append(f"  {key} = {json.dumps(value)}" + (f" [{unit}]" if unit else "") + ("" if given else "  (default)"))
-    return lines
 

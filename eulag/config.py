@@ -1149,6 +1149,23 @@ def key_reference() -> str:
     return "\n".join(lines)
 
 
+def resolved_case_lines(case: dict, model: str, source, rows) -> list[str]:
+    """The head of a dense-phase model's ``eulag check`` report: the case's name, file and model,
+    its name and description, then every key, ``rows`` of (dotted key, value, unit, given): the
+    value as TOML writes it, the unit in brackets, "(default)" where the file does not set it."""
+    import json
+
+    lines = [f"case {case.get('name', '')}" + (f" ({source})" if source else "") + f": model {model}", "",
+             "Case (every key; '(default)': the key's default)"]
+    for k in ("name", "description"):
+        if k in case:
+            text = json.dumps(case[k])
+            lines.append(f"  {k} = {text if len(text) <= 90 else text[:87] + '...'}")
+    for key, value, unit, given in rows:
+        lines.append(f"  {key} = {json.dumps(value)}" + (f" [{unit}]" if unit else "") + ("" if given else "  (default)"))
+    return lines
+
+
 if __name__ == "__main__":  # python -m eulag.config [docs/case-reference.md]
     import sys
 

@@ -1001,7 +1001,7 @@ def check_report(case: dict, source=None) -> str:
     from dem.engine import ContactModel
     from dem.feed import feed_speed
 
-    from eulag.check import resolved_case_lines
+    from eulag.config import resolved_case_lines
 
     c = validate_slug_case(case)
     rows = [(f"{sec}.{k}", c[sec][k], _UNITS.get(k, ""), k in case.get(sec, {})) for sec, keys in DEFAULTS.items()

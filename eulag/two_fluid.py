@@ -173,7 +173,7 @@ def check_report(case: dict, source=None) -> str:
     from tfm.developing import axial_stations
     from tfm.inlet import hinkle_1953_solids_velocity, inlet_solids_fraction
 
-    from eulag.check import resolved_case_lines
+    from eulag.config import resolved_case_lines
 
     c = resolved_case(case)
     rows = [(f"{sec}.{k}", c[sec][k], _CHECK_UNITS.get((sec, k), ""), k in case.get(sec, {}))
