@@ -1062,6 +1062,14 @@ def check_report(case: dict, source=None) -> str:
               f"  cost         about {per_s:.3g} s of wall time per simulated second and 1,000 grains in the tube on one "
               "core (measured with the default DEM step, scaled by the steps per second; SMH's default tube holds "
               "about 3,200 grains)"]
+    packed = (1.0 - fd["porosity"]) * area / cm.volume  # grains per metre of tube packed as the feed
+    if t["periodic"]:
+        n = packed * c["initial"]["plug_length_m"]
+        lines.append(f"  this run     {n:,.0f} grains (the initial plug): about {per_s * n / 1000 * num['end_time_s']:,.0f} s")
+    else:
+        n = packed * t["length_m"]
+        lines.append(f"  this run     at most {n:,.0f} grains (the tube packed as the feed): at most about "
+                     f"{per_s * n / 1000 * num['end_time_s']:,.0f} s")
     return "\n".join(lines)
 
 

@@ -246,6 +246,8 @@ def test_check_of_a_slug_case_prints_the_resolved_case_and_its_numbers(capsys):
     kappa = 1.4e-3 ** 2 * 0.48 ** 3 / (180.0 * 0.52 ** 2)  # Carman-Kozeny
     assert f"kappa = {kappa:.4g} [m2] in a slug" in out
     assert f"{6.73e-5 / kappa / 100:.4g} [hPa m-1]" in out
+    packed = (1 - 0.57) * math.pi / 4 * 0.007 ** 2 * 0.525 / (math.pi / 6 * 1.4e-3 ** 3)  # the tube packed as the feed
+    assert f"at most {packed:,.0f} grains" in out
 
 
 def test_check_of_a_two_fluid_case_prints_the_resolved_case_and_its_numbers(capsys):
