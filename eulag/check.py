@@ -412,4 +412,3 @@ def check_report(case: Case) -> str:
         out.append(f"  run time     about {_minutes(typical)} ({typical:.3g} [s]), up to "
                    f"{_minutes(worst)} ({worst:.3g} [s]): {basis}")
     return "\n".join(out)
-

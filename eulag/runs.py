@@ -291,12 +291,12 @@ def _reused(case, out: Path) -> RunResult:
 
     with xr.open_dataset(out) as ds:
         ds = ds.load()
-    reason = ds.attrs.get("stop_reason", "converged")
+    converged, reason = is_converged(ds), ds.attrs.get("stop_reason", "converged")
     if ds.attrs.get("model") == "dem-darcy":  # judged again by today's rules (eulag.slug.verdict)
         from eulag.slug import verdict
 
-        reason = verdict(ds)[1]
-    return RunResult(case, out, ds, is_converged(ds), reason, reused=True)
+        converged, reason = verdict(ds)
+    return RunResult(case, out, ds, converged, reason, reused=True)
 
 
 # ---------------------------------------------------------------------------- running

@@ -154,6 +154,13 @@ def tangential_damping_limit(restitution, steps_per_contact):
     return tangential_damping_pair_limit(restitution, steps_per_contact) / TANGENTIAL_PACKING_FACTOR
 
 
+def dem_steps(t_contact, steps_per_contact, gas_dt):
+    """(DEM steps per gas step, DEM step [s]): at most t_contact / steps_per_contact, shortened so a
+    whole number of them fills the gas step."""
+    n = max(1, int(math.ceil(gas_dt / (t_contact / steps_per_contact) - 1e-9)))
+    return n, gas_dt / n
+
+
 def _bad(sec, key, val, allowed):
     return ValueError(f"{sec}.{key} = {val!r}: allowed {allowed}")
 
@@ -277,9 +284,7 @@ class _Simulation:
         self.d = gr["diameter_m"]
         self.model = ContactModel(self.d, gr["density_kg_m3"], gr["stiffness_N_m"], gr["restitution"],
                                   gr["friction"], gr["wall_friction"], tangential_ratio=gr["tangential_damping_ratio"])
-        self.dt = self.model.t_contact / num["steps_per_contact"]
-        self.n_sub = max(1, int(math.ceil(num["gas_dt_s"] / self.dt - 1e-9)))
-        self.dt = num["gas_dt_s"] / self.n_sub  # a whole number of DEM steps per gas step
+        self.n_sub, self.dt = dem_steps(self.model.t_contact, num["steps_per_contact"], num["gas_dt_s"])
         self.gas_dt = num["gas_dt_s"]
         self.n_out = max(1, int(round(num["output_interval_s"] / self.gas_dt)))
         self.n_ckpt = max(1, int(round(num["checkpoint_interval_s"] / self.gas_dt)))
@@ -1012,8 +1017,7 @@ def check_report(case: dict, source=None) -> str:
     area = math.pi * Dt * Dt / 4.0
     cm = ContactModel(d, rho, gr["stiffness_N_m"], gr["restitution"], gr["friction"], gr["wall_friction"],
                       tangential_ratio=gr["tangential_damping_ratio"])
-    n_sub = max(1, int(math.ceil(num["gas_dt_s"] / (cm.t_contact / num["steps_per_contact"]) - 1e-9)))
-    dt = num["gas_dt_s"] / n_sub
+    n_sub, dt = dem_steps(cm.t_contact, num["steps_per_contact"], num["gas_dt_s"])
     weight = cm.mass * _G
     lines += ["", "Grains",
               f"  mass         m = {cm.mass:.4g} [kg]; weight m g = {weight:.4g} [N], per tube cross-section "
