@@ -162,6 +162,15 @@ def test_periodic_case_runs_without_losses(tmp_path):
     assert (ds.grains_in_tube == ds.grains_in_tube[0]).all()  # periodic: nothing enters or leaves
     assert float(ds.pressure_drop[-1]) > 0
     assert not (tmp_path / "p.nc.checkpoint").exists()
+    # the catalogue's slug velocity of SMH §3.2 / Fig. 10: each record's one slug (the slices below
+    # φ = 0.6) has the largest slice grain velocity of the record's stored fields
+    assert ds.sizes["slug"] == ds.sizes["time"]
+    for i in range(ds.sizes["time"]):
+        phi, u = ds.porosity.values[i], ds.grain_velocity.values[i]
+        dense = phi < slug.SLUG_POROSITY
+        assert dense.any() and not dense.all()
+        assert float(ds.slug_max_velocity[i]) == u[dense].max()
+        assert float(ds.slug_min_porosity[i]) == phi.min()
 
 
 def test_an_overlap_beyond_the_limit_is_an_unconverged_run():

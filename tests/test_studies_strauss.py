@@ -46,7 +46,10 @@ def test_registered_and_the_full_plan():
         assert d["grains"]["friction"] == d["grains"]["wall_friction"] == i["mu"]
         slug.validate_slug_case(d)
     assert {i["eta_cP"] for n, (g, i, c) in plan.items() if "viscosity" in g} == {0.045, 0.0673, 0.085}
-    assert plan["strauss_vertical__vs-1.0__feed-2.49"][2].data["tube"]["orientation"] == "vertical"
+    vertical = plan["strauss_vertical__vs-1.0__feed-2.49"][2].data
+    assert vertical["tube"]["orientation"] == "vertical"
+    assert vertical["numerics"]["end_time_s"] == 10.0  # the tube fills until t ≈ 5.7 s
+    assert strauss.window_of(vertical)[0] == 5.0
     assert not any("long" in g for g, _, _ in plan.values())
     long = studies.strauss_cases(False, long=True)
     assert long["strauss__vs-1.0__feed-2.49__t-22.5"][2].data["numerics"]["end_time_s"] == 22.5
@@ -146,7 +149,7 @@ def test_quick_runs_end_to_end_and_report_reuses_the_records(tmp_path, capsys):
     assert readme.startswith("# Hand-written") and "736 Pa/m" in readme
     assert readme.count(strauss.BEGIN) == 1 and readme.count(strauss.END) == 1
     assert "Quick mode" in readme and "not results" in readme and "wall time of this invocation" in readme
-    assert "Against the paper" in readme and "0.3–0.42" in readme
+    assert "Against the paper" in readme and "0.3 (§3.2, Fig. 10)" in readme
     table = rows(out / "strauss.csv")
     plan = studies.strauss_cases(True)
     assert [r["run"] for r in table] == list(plan)
@@ -217,3 +220,31 @@ def test_from_state_continues_the_horizontal_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert study("--from-state", "short.nc.checkpoint", "-o", "out") == 2
     assert study("--from-state", "state.npz", "--only", "vertical", "-o", "out") == 2  # nothing to continue
+
+
+# ---------------------------------------------------------------------------- against the paper
+def test_the_comparison_takes_each_velocity_the_papers_way():
+    """SMH give two velocities: the slugs' speed (0.42 m/s, §3) and the maximal granular velocity
+    in a slug (0.3 m/s, §3.2 / Fig. 10), and compare the vertical plugs' 0.17 m/s with the latter
+    (§4).  Each row takes its own measure and its own band (± 30 %)."""
+    from types import SimpleNamespace
+
+    plan = {"h": (("long",), {"end_s": 22.5}, None), "v": (("vertical",), {"end_s": 10.0}, None)}
+    base = {"pressure_drop_Pa": 400.0, "pressure_drop_per_length_Pa_m": 760.0, "grains_in_tube": 3000.0,
+            "slug_min_porosity": 0.48, "slug_length_m": 0.035, "slug_grains": 460.0, "grains_lost": 0,
+            "max_overlap_per_d": 0.009, "t_from_s": 6.0}
+    h = dict(base, slug_velocity_m_s=0.50, slug_max_grain_velocity_m_s=0.40)
+    v = dict(base, pressure_drop_Pa=1600.0, slug_velocity_m_s=0.28, slug_max_grain_velocity_m_s=0.215, t_from_s=5.0)
+    records = {"h": SimpleNamespace(ok=True, metrics=h), "v": SimpleNamespace(ok=True, metrics=v)}
+    rows = {r["quantity"]: r for r in strauss.comparison(plan, records)}
+    centres = rows["slug velocity: the slug centres' speed [m/s]"]
+    granular = rows["slug velocity: the maximal granular velocity in the slug [m/s]"]
+    assert centres["here"].startswith("0.500") and centres["verdict"] == "within"  # 0.42 ± 30 %
+    assert granular["here"].startswith("0.400") and granular["verdict"] == "outside"  # 0.3 ± 30 %: ≤ 0.39
+    plug = rows["vertical plug velocity: the maximal granular velocity in the plug [m/s]"]
+    assert plug["here"].startswith("0.215") and plug["verdict"] == "within"  # 0.17 ± 30 %: ≤ 0.221
+    assert rows["vertical plug centres' speed [m/s]"]["here"] == "0.280"
+    assert rows["vertical / horizontal maximal granular velocity"]["here"] == f"{0.215 / 0.40:.2f}"
+    v["slug_max_grain_velocity_m_s"] = 0.23
+    rows = {r["quantity"]: r for r in strauss.comparison(plan, records)}
+    assert rows["vertical plug velocity: the maximal granular velocity in the plug [m/s]"]["verdict"] == "outside"

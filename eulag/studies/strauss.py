@@ -334,7 +334,9 @@ def extract_metrics(ds, case, outdir: Path | None = None, name: str = "", spacet
         for k in range(int(round(L / step))):
             b = summarize(ds, x_window=(k * step, (k + 1) * step), t_min=t_from)
             dev.append({"x0": k * step, "x1": (k + 1) * step, "records": b["slug_records"],
-                        "velocity": b["slug_velocity_m_s"], "min_porosity": b.get("slug_min_porosity", math.nan),
+                        "velocity": b["slug_velocity_m_s"],
+                        "max_velocity": b.get("slug_max_grain_velocity_m_s", math.nan),
+                        "min_porosity": b.get("slug_min_porosity", math.nan),
                         "grains": b.get("slug_grains", math.nan)})
         m["development"] = dev
     return m
@@ -414,7 +416,8 @@ def _row(name, grp, info, rec: RunRecord) -> dict:
             "t_from": m.get("t_from_s"), "dp": m.get("pressure_drop_Pa"),
             "dpdx": m["pressure_drop_per_length_Pa_m"] / 100 if m.get("pressure_drop_per_length_Pa_m") is not None
             else None, "grains": m.get("grains_in_tube"),
-            "slug_velocity": m.get("slug_velocity_m_s"), "min_porosity": m.get("slug_min_porosity"),
+            "slug_velocity": m.get("slug_velocity_m_s"), "max_grain_velocity": m.get("slug_max_grain_velocity_m_s"),
+            "min_porosity": m.get("slug_min_porosity"),
             "slug_length_cm": m["slug_length_m"] * 100 if m.get("slug_length_m") is not None else None,
             "slug_grains": m.get("slug_grains"), "slug_records": m.get("slug_records"),
             "overlap_pct": m["max_overlap_per_d"] * 100 if m.get("max_overlap_per_d") is not None else None,
@@ -430,6 +433,7 @@ COLUMNS = [Column("run", "run"), Column("groups", "groups"), Column("vs", "v_s [
            Column("orientation", "tube"), Column("end", "end [s]", "{:g}"), Column("t_from", "from t [s]", "{:g}"),
            Column("dp", "Δp [Pa]", "{:.1f}"), Column("dpdx", "Δp/L [hPa/m]", "{:.2f}"),
            Column("grains", "grains in tube", "{:.0f}"), Column("slug_velocity", "slug velocity [m/s]", "{:.3f}"),
+           Column("max_grain_velocity", "max granular velocity [m/s]", "{:.3f}"),
            Column("min_porosity", "slug min φ", "{:.3f}"), Column("slug_length_cm", "slug length [cm]", "{:.1f}"),
            Column("slug_grains", "grains per slug", "{:.0f}"), Column("slug_records", "slug records", "{:d}"),
            Column("overlap_pct", "max overlap [% d]", "{:.2f}"), Column("lost", "grains lost", "{:d}"),
@@ -448,6 +452,10 @@ def _runs(plan, records, group):
             if group in grp and records[n].ok and "pressure_drop_Pa" in records[n].metrics]
 
 
+def _fmt(value, fmt):
+    return fmt.format(value) if value is not None and math.isfinite(value) else "—"
+
+
 def _within(value, lo, hi):
     if value is None or not math.isfinite(value):
         return "—"
@@ -462,7 +470,10 @@ def comparison(plan, records) -> list[dict]:
         info, m = horiz[0]
         src = f"({info['end_s']:g} s run, t ≥ {m['t_from_s']:g} s)"
         rows = (("Δp/L, horizontal [hPa/m]", "10", "× 2 (5–20)", m["pressure_drop_per_length_Pa_m"] / 100, 5, 20, "{:.2f}"),
-                ("slug velocity [m/s]", "0.3–0.42", "± 30 % (0.21–0.55)", m.get("slug_velocity_m_s"), 0.21, 0.546, "{:.3f}"),
+                ("slug velocity: the slug centres' speed [m/s]", "0.42 (§3, Fig. 1)", "± 30 % (0.29–0.55)",
+                 m.get("slug_velocity_m_s"), 0.294, 0.546, "{:.3f}"),
+                ("slug velocity: the maximal granular velocity in the slug [m/s]", "0.3 (§3.2, Fig. 10)",
+                 "± 30 % (0.21–0.39)", m.get("slug_max_grain_velocity_m_s"), 0.21, 0.39, "{:.3f}"),
                 ("min slug porosity", "0.47–0.49", "± 0.03 (0.44–0.52)", m.get("slug_min_porosity"), 0.44, 0.52, "{:.3f}"),
                 ("slug length [cm]", "4–8", "—", (m.get("slug_length_m") or math.nan) * 100, 4, 8, "{:.1f}"),
                 ("grains per slug", "470–500", "± 25 % (353–625)", m.get("slug_grains"), 352.5, 625, "{:.0f}"),
@@ -477,10 +488,21 @@ def comparison(plan, records) -> list[dict]:
     vert = _runs(plan, records, "vertical")
     if vert:
         info, m = vert[0]
-        v = m.get("slug_velocity_m_s")
-        out.append({"quantity": "vertical plug velocity [m/s]", "paper": "0.17", "tolerance": "± 30 % (0.12–0.22)",
-                    "here": f"{v:.3f} (t ≥ {m['t_from_s']:g} s)" if v is not None and math.isfinite(v) else "—",
-                    "verdict": _within(v, 0.119, 0.221)})
+        # SMH §4 compares the vertical plugs' 0.17 m/s with the horizontal 0.3 m/s, the saturated
+        # maximal granular velocity of Fig. 10 (§3.2 catalogues each slug's maximal granular
+        # velocity); the plug centres' own speed is given beside it, without a paper value.
+        v = m.get("slug_max_grain_velocity_m_s")
+        out.append({"quantity": "vertical plug velocity: the maximal granular velocity in the plug [m/s]",
+                    "paper": "0.17 (§4, beside the 0.3 of Fig. 10)", "tolerance": "± 30 % (0.12–0.22)",
+                    "here": _fmt(v, "{:.3f}") + f" (t ≥ {m['t_from_s']:g} s)", "verdict": _within(v, 0.119, 0.221)})
+        vc = m.get("slug_velocity_m_s")
+        out.append({"quantity": "vertical plug centres' speed [m/s]", "paper": "— (not given)", "tolerance": "—",
+                    "here": _fmt(vc, "{:.3f}"), "verdict": "—"})
+        if horiz:
+            vh = horiz[0][1].get("slug_max_grain_velocity_m_s")
+            ratio = v / vh if v is not None and vh else math.nan
+            out.append({"quantity": "vertical / horizontal maximal granular velocity", "paper": "0.57 (0.17 / 0.3)",
+                        "tolerance": "—", "here": _fmt(ratio, "{:.2f}"), "verdict": "—"})
         if horiz:
             mh = horiz[0][1]
             r = m["pressure_drop_Pa"] / mh["pressure_drop_Pa"] if mh["pressure_drop_Pa"] else math.nan
@@ -674,12 +696,13 @@ def _development_text(plan, records) -> list[str]:
             sep = "|---|" + "---|" * len(dev)
 
             def line(label, key, fmt):
-                return f"| {label} | " + " | ".join(fmt.format(d[key]) if d[key] is not None and
-                                                   math.isfinite(d[key]) else "—" for d in dev) + " |"
+                return f"| {label} | " + " | ".join(_fmt(d.get(key), fmt) for d in dev) + " |"
             return ["## Development along the tube (after SMH Figs. 9–10)", "",
                     f"The {group} run, t ≥ {m['t_from_s']:g} s, slugs of ≥ 100 grains in bins of 5 cm (SMH: minimum "
-                    "porosity 0.57 → 0.47 and slug velocity 0.04 → 0.3 m/s within the first ≈ 0.2 m).", "",
-                    head, sep, line("slug velocity [m/s]", "velocity", "{:.2f}"),
+                    "porosity 0.57 → 0.47 and maximal granular velocity 0.04 → 0.3 m/s within the first ≈ 0.2 m; the "
+                    "slug centres' speed beside it).", "",
+                    head, sep, line("slug velocity (centres) [m/s]", "velocity", "{:.2f}"),
+                    line("max granular velocity [m/s]", "max_velocity", "{:.2f}"),
                     line("min porosity", "min_porosity", "{:.3f}"), line("grains per slug", "grains", "{:.0f}"), ""]
     return []
 
