@@ -115,7 +115,8 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="directory of the datasets, checkpoints and sweep_summary.csv/.md "
                             "(default: the current directory; created if missing)")
     sweep.add_argument("--parcels", type=_positive_int, metavar="N",
-                       help="parcels per Lagrangian pass in the final passes, for every case")
+                       help="parcels per Lagrangian pass in the final passes, for every case "
+                            "(Euler-Lagrange cases only)")
     sweep.add_argument("--quiet", action="store_true", help="no progress lines")
     _add_dask_arguments(sweep, "whole cases")
     sweep.set_defaults(func=cmd_sweep)

@@ -127,10 +127,14 @@ def model_of(path: Path) -> str:
 def load_case(spec: str | Path, *, parcels: int | None = None):
     """Read and validate a case: an :class:`eulag.config.Case` for the Euler–Lagrange model, or
     the dense-phase models' validated case (their modules define it).  ``parcels`` overrides
-    ``numerics.parcels`` (and caps ``numerics.parcels_start``) of an Euler–Lagrange case."""
+    ``numerics.parcels`` (and caps ``numerics.parcels_start``) of an Euler–Lagrange case; given
+    for a dense-phase case it is :class:`BadInput`."""
     path = case_path(spec)
     model = model_of(path) if path.is_file() else "euler-lagrange"
     if model != "euler-lagrange":
+        if parcels is not None:
+            raise BadInput(f"--parcels {parcels}: {path} is a model = {model!r} case, which tracks no parcels; "
+                           "allowed: Euler-Lagrange cases")
         module_name, validate, _ = _DENSE[model]
         data = tomllib.loads(path.read_bytes().decode("utf-8"))
         try:

@@ -3,6 +3,9 @@
     eulag sweep cases/a.toml cases/b.toml ... [-o DIR] [--dask-local N | --scheduler ADDRESS]
                 [--parcels N] [--quiet]
 
+The cases may be of any model (``model = "euler-lagrange"`` (the default), ``"dem-darcy"``,
+``"two-fluid"``) and mixed in one sweep; ``--parcels`` applies to Euler–Lagrange cases only.
+
 Every case writes its own dataset ``DIR/<case name>.nc`` and keeps its checkpoint beside it
 (``DIR/<case name>.nc.checkpoint``), exactly as ``eulag run CASE -o DIR/<name>.nc --resume``.
 Without Dask options the cases run one after another in this process (numba threads as
@@ -16,9 +19,13 @@ again; a case that was interrupted continues from its checkpoint.  A case task w
 dies is re-run by Dask, and then also continues from the checkpoint.
 
 After every finished case and at the end (also after failures or an interruption)
-``DIR/sweep_summary.csv`` and ``DIR/sweep_summary.md`` list per case: status (ran | finished earlier | failed | not run),
-converged, passes, final residual, section-mean −dp/dx, the single-phase −dp/dx, the
-pressure-drop ratio and λ_Z (gas–particle cases), wall time, output and the error message.
+``DIR/sweep_summary.csv`` and ``DIR/sweep_summary.md`` list per case: its model, status (ran |
+finished earlier | failed | not run), converged, coupling passes (Euler–Lagrange), final
+residual (the coupling loop's, or the two-fluid solve's outer-iteration change), −dp/dx (the
+section mean over the pipe; a slug run: its mean Δp/L over the statistics window of
+:func:`eulag.slug.statistics_window`), the pressure drop (dense-phase models), the single-phase
+−dp/dx, the pressure-drop ratio and λ_Z (Euler–Lagrange gas–particle cases), wall time, output
+and the error message.
 
 Bad input (a missing or invalid case file, two cases with the same name, an output or a
 checkpoint that holds a different case) is reported before any case starts.  Exit status: 0 all cases finished and
@@ -34,18 +41,18 @@ import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
-from eulag.config import Case
 from eulag.output import is_converged
 
 __all__ = ["SweepInputError", "SweepCase", "plan_sweep", "run_case", "run_sweep", "write_summary",
            "summary_row", "COLUMNS", "SUMMARY_STEM"]
 
 SUMMARY_STEM = "sweep_summary"
-COLUMNS = ("case", "status", "converged", "passes", "final_residual", "pressure_gradient",
-           "pressure_gradient_single_phase", "solids_pressure_drop_ratio",
+COLUMNS = ("case", "model", "status", "converged", "passes", "final_residual", "pressure_gradient",
+           "pressure_drop", "pressure_gradient_single_phase", "solids_pressure_drop_ratio",
            "additional_pressure_loss_coefficient", "wall_time", "output", "error")
-_HEADERS = {"case": "case", "status": "status", "converged": "converged", "passes": "passes",
+_HEADERS = {"case": "case", "model": "model", "status": "status", "converged": "converged", "passes": "passes",
             "final_residual": "final residual", "pressure_gradient": "-dp/dx [Pa/m]",
+            "pressure_drop": "pressure drop [Pa]",
             "pressure_gradient_single_phase": "-dp/dx single-phase [Pa/m]",
             "solids_pressure_drop_ratio": "dp ratio", "additional_pressure_loss_coefficient": "lambda_Z",
             "wall_time": "wall time [s]", "output": "output", "error": "error"}
@@ -59,16 +66,21 @@ class SweepInputError(ValueError):
 
 @dataclass
 class SweepCase:
-    """One case of a sweep: its file, the validated case, its output, and whether it is done."""
+    """One case of a sweep: its file, the validated case (an :class:`eulag.config.Case`, or a
+    dense-phase model's :class:`eulag.runs.ModelCase`), its output, and whether it is done."""
 
     path: str
-    case: Case
+    case: object
     output: Path
     finished: bool = False
 
     @property
     def name(self):
         return self.case.name
+
+    @property
+    def model(self):
+        return getattr(self.case, "model", "euler-lagrange")
 
 
 # ---------------------------------------------------------------------------- planning
@@ -91,8 +103,6 @@ def plan_sweep(paths, output_dir=".", parcels=None):
             case = load_case(p, parcels=parcels)
         except RunError as exc:
             raise SweepInputError(str(exc)) from None
-        if not isinstance(case, Case):
-            raise SweepInputError(f"{p}: model = {case.model!r}; a sweep runs Euler-Lagrange cases")
         if case.name in by_name:
             raise SweepInputError(f"{p}: case name {case.name!r} is also the name of {by_name[case.name]}; "
                                   "every case of a sweep needs its own name (its output is <name>.nc)")
@@ -141,18 +151,23 @@ def _float(v):
     return f
 
 
-def summary_row(name, ds, output, status, wall_time, error=""):
+def summary_row(name, ds, output, status, wall_time, error="", model="euler-lagrange"):
     """The summary line (dict over :data:`COLUMNS`) of a case from its dataset (or None)."""
     row = {c: "" for c in COLUMNS}
-    row.update(case=name, status=status, output=str(output), error=error)
+    row.update(case=name, model=model, status=status, output=str(output), error=error)
     row["wall_time"] = wall_time
     if ds is None:
         return row
     import numpy as np
 
+    row["model"] = model = str(ds.attrs.get("model", model))
     row["converged"] = is_converged(ds)
-    two_phase = "parcels" in ds.variables
-    row["passes"] = int(ds.sizes.get("iteration", 0)) if two_phase else 0
+    if model == "dem-darcy":
+        return _slug_row(row, ds, wall_time)
+    if model == "euler-lagrange":
+        row["passes"] = int(ds.sizes.get("iteration", 0)) if "parcels" in ds.variables else 0
+    elif "pressure_drop" in ds.variables:
+        row["pressure_drop"] = float(ds["pressure_drop"].values)
     if "residual" in ds.variables and ds["residual"].size:
         row["final_residual"] = float(np.asarray(ds["residual"].values).ravel()[-1])
     for key in ("pressure_gradient", "pressure_gradient_single_phase"):
@@ -168,11 +183,28 @@ def summary_row(name, ds, output, status, wall_time, error=""):
     return row
 
 
+def _slug_row(row, ds, wall_time):
+    """A slug run's numbers: Δp and Δp/L over its statistics window (as the strauss study
+    takes them)."""
+    import json
+
+    from eulag.slug import statistics_window, summarize
+
+    case = json.loads(ds.attrs["case"])
+    t_from, x_window = statistics_window(case, ds["time"].values)
+    s = summarize(ds, x_window=x_window, t_min=t_from)
+    row["pressure_drop"] = s["pressure_drop_Pa"]
+    row["pressure_gradient"] = s["pressure_drop_per_length_Pa_m"]
+    if wall_time == "" or wall_time is None:
+        row["wall_time"] = _float(ds.attrs.get("wall_time_s", math.nan))
+    return row
+
+
 def read_row(entry, status):
     import xarray as xr
 
     with xr.open_dataset(entry.output) as ds:
-        return summary_row(entry.name, ds.load(), entry.output, status, None)
+        return summary_row(entry.name, ds.load(), entry.output, status, None, model=entry.model)
 
 
 def run_case(case, output, numba_threads=None):
@@ -193,7 +225,8 @@ def run_case(case, output, numba_threads=None):
         ds = runs.execute(case, output, resume=True).dataset
     except Exception as exc:  # noqa: BLE001 - reported in the summary, one line
         text = " ".join(f"{type(exc).__name__}: {exc}".split())
-        return summary_row(case.name, None, output, FAILED, time.perf_counter() - t0, error=text)
+        return summary_row(case.name, None, output, FAILED, time.perf_counter() - t0, error=text,
+                           model=getattr(case, "model", "euler-lagrange"))
     return summary_row(case.name, ds, output, RAN, time.perf_counter() - t0)
 
 
@@ -220,7 +253,8 @@ def run_sweep(entries, client=None, *, numba_threads=None, progress=None, summar
     done = 0
 
     def current():
-        return [rows.get(e.name) or summary_row(e.name, None, e.output, NOT_RUN, "") for e in entries]
+        return [rows.get(e.name) or summary_row(e.name, None, e.output, NOT_RUN, "", model=e.model)
+                for e in entries]
 
     def report(row):
         nonlocal done
@@ -232,7 +266,8 @@ def run_sweep(entries, client=None, *, numba_threads=None, progress=None, summar
             what = f"FAILED: {row['error']}"
         else:
             conv = "converged" if row["converged"] else "NOT converged"
-            what = f"{conv}, {row['passes']} passes, {row['wall_time']:.1f} s -> {row['output']}"
+            passes = f"{row['passes']} passes, " if row["model"] == "euler-lagrange" else ""
+            what = f"{conv}, {passes}{row['wall_time']:.1f} s -> {row['output']}"
         say(f"[{done}/{len(todo)}] {row['case']}: {what}")
 
     try:
@@ -244,7 +279,7 @@ def run_sweep(entries, client=None, *, numba_threads=None, progress=None, summar
     finally:
         for e in entries:
             if e.name not in rows:
-                rows[e.name] = summary_row(e.name, None, e.output, NOT_RUN, "",
+                rows[e.name] = summary_row(e.name, None, e.output, NOT_RUN, "", model=e.model,
                                            error="interrupted before it finished; run the sweep again "
                                                  "to resume")
     return [rows[e.name] for e in entries]
@@ -268,7 +303,7 @@ def _run_on_dask(client, todo, numba_threads, report):
                                           f"({_oneline(exc)}); finished cases are kept, run the sweep "
                                           "again to resume") from None
             except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: the case failed
-                row = summary_row(e.name, None, e.output, FAILED, "", error=_oneline(exc))
+                row = summary_row(e.name, None, e.output, FAILED, "", error=_oneline(exc), model=e.model)
             report(row)
     finally:
         for f in futures:
@@ -276,7 +311,7 @@ def _run_on_dask(client, todo, numba_threads, report):
 
 
 # ---------------------------------------------------------------------------- summary
-_FLOAT_COLUMNS = ("final_residual", "pressure_gradient", "pressure_gradient_single_phase",
+_FLOAT_COLUMNS = ("final_residual", "pressure_gradient", "pressure_drop", "pressure_gradient_single_phase",
                   "solids_pressure_drop_ratio", "additional_pressure_loss_coefficient", "wall_time")
 
 
