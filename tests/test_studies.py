@@ -180,7 +180,8 @@ def test_a_checkpoint_from_before_a_later_key_is_kept_by_the_study(tmp_path):
 
 # the study cases as the commands in results/README.md run them
 RESULT_CASES = {
-    "scenes": lambda: studies.scene_cases(False, parcels=30000),
+    "scenes": lambda: studies.scene_cases(False),
+    "scenes-former": lambda: studies.scene_cases(False, parcels=30000),
     "stability": lambda: [(n, c) for n, _, c in studies.stability_cases(False, parcels=30000)
                           if isinstance(c, Case)],
     "tsuji-morikawa": lambda: studies.tsuji_morikawa_cases(False),
@@ -188,19 +189,19 @@ RESULT_CASES = {
 
 
 #: results/ folders whose records were run with today's defaults (the others predate them)
-TODAYS_DEFAULTS = {"tsuji-morikawa"}
+TODAYS_DEFAULTS = {"scenes", "tsuji-morikawa"}
 
 
 @pytest.mark.parametrize("folder", sorted(RESULT_CASES))
 def test_committed_records_belong_to_the_shipped_cases(folder):
-    """The run records in results/scenes and results/stability (written before
+    """The run records in results/scenes-former and results/stability (written before
     physics.partner_correlation, physics.partner_momentum, numerics.mirror_symmetry,
     physics.langevin_drift_form and numerics.drag_implicit_weight existed) are the records of the
     study cases with those keys at their earlier behaviour (config.LATER_KEYS), so --resume
     on a fresh clone reports them, not re-runs; the key at another value is another case —
     today's defaults, mirror-symmetric sampling and the returned partner momentum, included:
-    those cases are re-run.  results/tsuji-morikawa holds runs of today's defaults: its records
-    are those of the shipped cases as they are."""
+    those cases are re-run.  results/scenes and results/tsuji-morikawa hold runs of today's
+    defaults: their records are those of the shipped cases as they are."""
     found = 0
     for name, today in RESULT_CASES[folder]():
         if folder in TODAYS_DEFAULTS:

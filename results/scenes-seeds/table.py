@@ -1,6 +1,6 @@
 """The seed table of results/scenes-seeds/README.md: the pattern of each run at x = 3.56 m.
 
-    python results/scenes-seeds/table.py "a, seed 1, 9707e30=RUN.nc" "b, seed 1, scenes-240k=RUN.record.json" ...
+    python results/scenes-seeds/table.py "a, seed 1, 9707e30=RUN.nc" "b, seed 1, scenes=RUN.record.json" ...
 
 Each argument is LABEL=PATH, PATH a run's dataset (the metrics are computed from it with
 ``eulag.studies.scenes.scene_metrics``, as the scene study does) or a run record
