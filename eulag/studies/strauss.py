@@ -702,7 +702,8 @@ def _development_text(plan, records) -> list[str]:
                     "porosity 0.57 → 0.47 and maximal granular velocity 0.04 → 0.3 m/s within the first ≈ 0.2 m; the "
                     "slug centres' speed beside it).", "",
                     head, sep, line("slug velocity (centres) [m/s]", "velocity", "{:.2f}"),
-                    line("max granular velocity [m/s]", "max_velocity", "{:.2f}"),
+                    *([line("max granular velocity [m/s]", "max_velocity", "{:.2f}")]
+                      if any("max_velocity" in d for d in dev) else []),  # records written before it
                     line("min porosity", "min_porosity", "{:.3f}"), line("grains per slug", "grains", "{:.0f}"), ""]
     return []
 
