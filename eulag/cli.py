@@ -60,7 +60,8 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("-o", "--output", metavar="OUT.nc",
                      help="output dataset (default: <case name>.nc in the current directory)")
     run.add_argument("--parcels", type=_positive_int, metavar="N",
-                     help="parcels per Lagrangian pass in the final passes (overrides numerics.parcels)")
+                     help="parcels per Lagrangian pass in the final passes (overrides numerics.parcels; "
+                          "Euler-Lagrange cases only)")
     run.add_argument("--resume", action="store_true",
                      help="continue from the checkpoint beside the output; succeed at once if the "
                           "output is already a finished run of the same case")

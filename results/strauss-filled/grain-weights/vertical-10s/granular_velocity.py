@@ -3,9 +3,9 @@ centre of mass, the minimal porosity, the maximal granular velocity and the slug
 shows the maximal granular velocity, saturating at 0.3 m/s, the value §4 sets beside the
 vertical plugs' 0.17 m/s), beside the speed of the slug centres.
 
-    python granular_velocity.py RUN.nc T_MIN [--x0 0.15] [--x1 0.4] [--block 0.5]
+    python granular_velocity.py RUN.nc T_MIN [--t-max T] [--x0 0.15] [--x1 0.4] [--block 0.5]
 
-Over slugs of >= 100 grains centred in [x0, x1] with record time >= T_MIN: the mean of each
+Over slugs of >= 100 grains centred in [x0, x1] with record time in [T_MIN, T_MAX]: the mean of each
 record's maximal slice grain velocity in the slug (`eulag.slug.summarize`), its standard error
 from the means of consecutive blocks of BLOCK seconds (full blocks only), and the centres'
 speed from the catalogue's links.
@@ -23,11 +23,14 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("run")
     ap.add_argument("t_min", type=float)
+    ap.add_argument("--t-max", type=float, default=None)
     ap.add_argument("--x0", type=float, default=0.15)
     ap.add_argument("--x1", type=float, default=0.4)
     ap.add_argument("--block", type=float, default=0.5)
     a = ap.parse_args()
     ds = xr.open_dataset(a.run)
+    if a.t_max is not None:  # records and catalogue up to t_max
+        ds = ds.sel(time=slice(None, a.t_max + 1e-9)).isel(slug=np.flatnonzero(ds["slug_time"].values <= a.t_max + 1e-9))
     s = summarize(ds, x_window=(a.x0, a.x1), t_min=a.t_min)
     st, sx = ds["slug_time"].values, ds["slug_position"].values
     sel = (st >= a.t_min) & (ds["slug_grains"].values >= 100) & (sx >= a.x0) & (sx <= a.x1)
