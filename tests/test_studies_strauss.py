@@ -250,6 +250,14 @@ def test_the_comparison_takes_each_velocity_the_papers_way():
     v["slug_max_grain_velocity_m_s"] = 0.23
     rows = {r["quantity"]: r for r in strauss.comparison(plan, records)}
     assert rows["vertical plug velocity: the maximal granular velocity in the plug [m/s]"]["verdict"] == "outside"
+    # a run still filling over its window (outflow well below the feed) is listed, not judged
+    h["outflow_per_feed"], v["outflow_per_feed"] = 0.09, 1.02
+    rows = {r["quantity"]: r for r in strauss.comparison(plan, records)}
+    assert rows["slug velocity: the slug centres' speed [m/s]"]["verdict"] == \
+        "not judged: tube still filling (outflow / feed 0.09)"
+    assert rows["vertical plug velocity: the maximal granular velocity in the plug [m/s]"]["verdict"] == "outside"
+    assert rows["vertical Δp / horizontal Δp"]["verdict"].startswith("not judged")
+    assert rows["vertical / horizontal maximal granular velocity"]["verdict"] == "—"
 
 
 def test_the_development_table_gives_the_papers_measure_where_the_record_has_it():
