@@ -295,11 +295,12 @@ def _reused(case, out: Path) -> RunResult:
 
     with xr.open_dataset(out) as ds:
         ds = ds.load()
-    converged, reason = is_converged(ds), ds.attrs.get("stop_reason", "converged")
     if ds.attrs.get("model") == "dem-darcy":  # judged again by today's rules (eulag.slug.verdict)
         from eulag.slug import verdict
 
         converged, reason = verdict(ds)
+    else:
+        converged, reason = is_converged(ds), ds.attrs.get("stop_reason", "converged")
     return RunResult(case, out, ds, converged, reason, reused=True)
 
 
