@@ -1056,12 +1056,16 @@ def check_report(case: dict, source=None) -> str:
               f"  diffusivity  P0 kappa / (eta phi) = {diff:.4g} [m2 s-1] in a slug: a gas cell (dx = {1e3 * dx:.3g} mm) "
               f"relaxes in dx^2/D = {dx * dx / diff:.3g} [s], the gas step is {num['gas_dt_s']:g} [s] "
               f"({scheme}, implicit)"]
-    n_gas = int(round(num["end_time_s"] / num["gas_dt_s"]))
+    # a run continued from a saved state simulates from the state's time to end_time_s
+    t0 = read_state(c["initial"]["state"], c)[1] if c["initial"]["state"] else 0.0
+    span = num["end_time_s"] - t0
+    n_gas = int(round(span / num["gas_dt_s"]))
     per_s = 1000.0 * CHECK_WALL_S_PER_GRAIN_SECOND * (n_sub / num["gas_dt_s"]) / CHECK_REFERENCE_STEPS_PER_S
     lines += ["", "Numerics",
               f"  grid         {num['cells_x']} x {num['cells_across']} x {num['cells_across']} gas nodes, dx = {1e3 * dx:.3g} [mm]",
-              f"  time         {num['end_time_s']:g} s: {n_gas:,} gas steps, {n_gas * n_sub:,} DEM steps; a record every "
-              f"{num['output_interval_s']:g} s ({int(round(num['end_time_s'] / num['output_interval_s'])):,}), "
+              f"  time         {span:g} s" + (f" (from the state's t = {t0:g} s to {num['end_time_s']:g} s)" if t0 else "")
+              + f": {n_gas:,} gas steps, {n_gas * n_sub:,} DEM steps; a record every "
+              f"{num['output_interval_s']:g} s ({int(round(span / num['output_interval_s'])):,}), "
               f"a checkpoint every {num['checkpoint_interval_s']:g} s",
               f"  cost         about {per_s:.3g} s of wall time per simulated second and 1,000 grains in the tube on one "
               "core (measured with the default DEM step, scaled by the steps per second; SMH's default tube holds "
@@ -1069,11 +1073,11 @@ def check_report(case: dict, source=None) -> str:
     packed = (1.0 - fd["porosity"]) * area / cm.volume  # grains per metre of tube packed as the feed
     if t["periodic"]:
         n = packed * c["initial"]["plug_length_m"]
-        lines.append(f"  this run     {n:,.0f} grains (the initial plug): about {per_s * n / 1000 * num['end_time_s']:,.0f} s")
+        lines.append(f"  this run     {n:,.0f} grains (the initial plug): about {per_s * n / 1000 * span:,.0f} s")
     else:
         n = packed * t["length_m"]
         lines.append(f"  this run     at most {n:,.0f} grains (the tube packed as the feed): at most about "
-                     f"{per_s * n / 1000 * num['end_time_s']:,.0f} s")
+                     f"{per_s * n / 1000 * span:,.0f} s")
     return "\n".join(lines)
 
 

@@ -250,6 +250,20 @@ def test_check_of_a_slug_case_prints_the_resolved_case_and_its_numbers(capsys):
     assert f"at most {packed:,.0f} grains" in out
 
 
+def test_check_of_a_continued_slug_case_counts_from_the_states_time(capsys, tmp_path):
+    """A case continued from a saved state simulates from the state's time to end_time_s: the
+    steps, records and cost `eulag check` prints are those of that span, not of 0 to end_time_s."""
+    text = (ROOT / "results" / "strauss-filled" / "grain-weights" / "vs1.toml").read_text()
+    state = ROOT / "results" / "strauss" / "state_horizontal_t13.25.npz"  # t = 13.25 s
+    text = text.replace('state = "results/strauss/state_horizontal_t13.25.npz"', f'state = "{state.as_posix()}"')
+    case = tmp_path / "continued.toml"
+    case.write_text(text)
+    status, out, err = run_cli(capsys, "check", case)
+    assert status == 0, err
+    assert "time         3 s (from the state's t = 13.25 s to 16.25 s): 30,000 gas steps" in out  # 3 s / 1e-4 s
+    assert "a record every 0.01 s (300)" in out
+
+
 def test_check_of_a_two_fluid_case_prints_the_resolved_case_and_its_numbers(capsys):
     import re
     import tomllib
