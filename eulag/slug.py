@@ -1057,7 +1057,7 @@ def check_report(case: dict, source=None) -> str:
               f"relaxes in dx^2/D = {dx * dx / diff:.3g} [s], the gas step is {num['gas_dt_s']:g} [s] "
               f"({scheme}, implicit)"]
     # a run continued from a saved state simulates from the state's time to end_time_s
-    t0 = read_state(c["initial"]["state"], c)[1] if c["initial"]["state"] else 0.0
+    t0 = state_time(case)
     span = num["end_time_s"] - t0
     n_gas = int(round(span / num["gas_dt_s"]))
     per_s = 1000.0 * CHECK_WALL_S_PER_GRAIN_SECOND * (n_sub / num["gas_dt_s"]) / CHECK_REFERENCE_STEPS_PER_S

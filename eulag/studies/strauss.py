@@ -481,9 +481,10 @@ def comparison(plan, records) -> list[dict]:
     out = []
     horiz = _runs(plan, records, "long") or _runs(plan, records, "default")
 
-    def judged(row, m):
-        if _filling(m) and row["verdict"] in ("within", "outside"):
-            row["verdict"] = "not judged: " + _filling(m)
+    def judged(row, *runs):  # the row's verdict, unless one of the runs it rests on is still filling
+        why = next((f for f in map(_filling, runs) if f), "")
+        if why and row["verdict"] in ("within", "outside"):
+            row["verdict"] = "not judged: " + why
         return row
 
     if horiz:
@@ -532,9 +533,9 @@ def comparison(plan, records) -> list[dict]:
             r = m["pressure_drop_Pa"] / mh["pressure_drop_Pa"] if mh["pressure_drop_Pa"] else math.nan
             per = (m["pressure_drop_Pa"] / m["grains_in_tube"]) / (mh["pressure_drop_Pa"] / mh["grains_in_tube"]) \
                 if m["grains_in_tube"] and mh["grains_in_tube"] and mh["pressure_drop_Pa"] else math.nan
-            out.append(judged(judged({"quantity": "vertical Δp / horizontal Δp", "paper": "≈ 4", "tolerance": "2.5–6",
-                                      "here": f"{r:.2f} (per grain in the tube: {per:.2f})",
-                                      "verdict": _within(r, 2.5, 6)}, m), mh))
+            out.append(judged({"quantity": "vertical Δp / horizontal Δp", "paper": "≈ 4", "tolerance": "2.5–6",
+                               "here": f"{r:.2f} (per grain in the tube: {per:.2f})",
+                               "verdict": _within(r, 2.5, 6)}, m, mh))
     out += _regime_rows(plan, records)
     mf = sorted((i["feed"], m["pressure_drop_Pa"]) for i, m in _runs(plan, records, "mass-flux"))
     if len(mf) >= 3:
