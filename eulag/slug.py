@@ -87,14 +87,15 @@ DEFAULTS = {
     "numerics": {"cells_x": 150, "cells_across": 2, "steps_per_contact": 30, "gas_dt_s": 1e-4, "theta": 1.0,
                  "end_time_s": 4.0, "output_interval_s": 0.01, "checkpoint_interval_s": 0.5, "seed": 1,
                  "min_solid_fraction_force": 0.05, "parallel": False, "porosity_weights": "grain",
-                 "grain_interpolation": "normalised", "overlap_limit": 0.05},
+                 "grain_interpolation": "normalised", "overlap_limit": 0.05, "cross_section_at": 0.5,
+                 "cross_section_pixels": 14},
 }
 
 _CHOICES = {("tube", "orientation"): ("horizontal", "vertical"), ("gas", "inlet"): ("flux", "source"),
             ("numerics", "porosity_weights"): ("grain", "tent"),
             ("numerics", "grain_interpolation"): ("normalised", "printed")}
 _INTS = {("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "steps_per_contact"),
-         ("numerics", "seed")}
+         ("numerics", "seed"), ("numerics", "cross_section_pixels")}
 _BOOLS = {("tube", "periodic"), ("numerics", "parallel")}
 _STRINGS = {("initial", "state")}
 # (low, high, low inclusive?) for the numbers
@@ -105,7 +106,7 @@ _RANGES = {
     ("gas", "superficial_velocity_m_s"): (0.0, 1e3, True), ("numerics", "theta"): (0.5, 1.0, True),
     ("numerics", "min_solid_fraction_force"): (1e-6, 1.0, True), ("initial", "plug_start_m"): (0.0, 1e3, True),
     ("initial", "plug_length_m"): (0.0, 1e3, True), ("grains", "tangential_damping_ratio"): (0.0, 100.0, True),
-    ("numerics", "overlap_limit"): (0.0, 1.0, False),
+    ("numerics", "overlap_limit"): (0.0, 1.0, False), ("numerics", "cross_section_at"): (0.0, 1.0, True),
 }
 #: numerics.overlap_limit: the largest grain overlap / d a run may reach and still count as
 #: finished. The stiffness is chosen for overlaps of about 1 % of d (docs/slug.md); the runs of
@@ -331,7 +332,18 @@ class _Simulation:
         self.max_overlap = 0.0
         self.phi_clipped = 0
         self.rec = {k: [] for k in ("time", "phi", "ux", "p", "dp", "n_tube", "outflow", "overlap", "gas_share",
-                                    "wall_stress", "temperature", "contact")}
+                                    "wall_stress", "temperature", "contact", "section", "layer_n", "layer_u",
+                                    "layer_rms")}
+        # the recorded cross-section (SMH §3.4, Figs. 17-19): a gas-cell-wide slice at
+        # numerics.cross_section_at of the tube length
+        from dem.sections import layer_edges, pixel_centres, pixel_inside_fraction, sphere_lattice
+        self.sec_x = num["cross_section_at"] * self.L
+        self.sec_w = self.grid.lx
+        self.sec_pix = num["cross_section_pixels"]
+        self.sec_inside = pixel_inside_fraction(self.Rt, self.sec_pix)
+        self.sec_centres = pixel_centres(self.Rt, self.sec_pix)
+        self.sec_lattice = sphere_lattice()
+        self.layer_edges = layer_edges(self.Rt, self.d)
         self.slugs = []
         self.t_gas = 0.0
         self.t_total = 0.0
@@ -460,6 +472,16 @@ class _Simulation:
             r["temperature"].append(np.bincount(k, weights=(dv * dv).sum(axis=1) / 3.0, minlength=nxg) / per)
             fc = np.linalg.norm(g.force[:n][in_tube], axis=1)
             r["contact"].append(np.bincount(k, weights=fc, minlength=nxg) / per)
+        # the cross-section at sec_x: solids-fraction image and layer velocities (dem.sections)
+        from dem.sections import layer_velocity, solids_fraction_image
+        free_pos = g.pos[:n][free]
+        r["section"].append(solids_fraction_image(free_pos, self.d, self.sec_x, self.sec_w, self.Rt, self.sec_pix,
+                                                  self.periodic, self.L, self.sec_inside, self.sec_lattice))
+        cnt_l, u_l, rms_l = layer_velocity(free_pos, g.vel[:n][free], self.sec_x, self.sec_w, self.layer_edges,
+                                           self.periodic, self.L)
+        r["layer_n"].append(cnt_l)
+        r["layer_u"].append(u_l)
+        r["layer_rms"].append(rms_l)
         # slug catalogue: runs of slices with φ < SLUG_POROSITY
         lx = grid.lx
         s = phi1 < SLUG_POROSITY
@@ -532,7 +554,9 @@ class _Simulation:
         n_rec = len(st["rec_time"])
         for k in self.rec:
             if "rec_" + k not in st:  # a checkpoint written before this record existed
-                self.rec[k] = [np.full(self.grid.nx, np.nan) for _ in range(n_rec)]
+                shape = {"section": (self.sec_pix, self.sec_pix)}.get(
+                    k, (len(self.layer_edges) - 1,) if k.startswith("layer_") else (self.grid.nx,))
+                self.rec[k] = [np.full(shape, np.nan) for _ in range(n_rec)]
                 continue
             a = st["rec_" + k]
             self.rec[k] = [row for row in a] if a.ndim > 1 else a.tolist()
@@ -557,6 +581,7 @@ class _Simulation:
         r, grid = self.rec, self.grid
         time_ = np.array(r["time"])
         sl = np.array(self.slugs, dtype=float).reshape(-1, 6)
+        nl = len(self.layer_edges) - 1
         mdot = self.model.mass * np.diff(np.concatenate([[0], r["outflow"]])) / np.diff(np.concatenate([[self.t_start], time_]))
 
         def var(dims, data, units, long_name, **kw):
@@ -574,6 +599,19 @@ class _Simulation:
                                             "granular temperature <|v - mean v|^2>/3 of the grains of a slice (0 without grains)"),
                 "contact_force": var(("time", "x"), r["contact"], "N",
                                      "mean magnitude of the contact force (grains and wall) per grain of a slice (0 without grains)"),
+                "section_solids_fraction": var(
+                    ("time", "section_z", "section_y"), np.reshape(r["section"], (-1, self.sec_pix, self.sec_pix)),
+                    "1", f"solids volume fraction in the slice x = section_x +- {0.5 * self.sec_w:g} m (grain volume "
+                    f"sampled on a d/8 lattice; pixels less than half inside the wall: 0)"),
+                "section_pixel_inside": var(("section_z", "section_y"), self.sec_inside, "1",
+                                            "share of the pixel's area inside the tube wall"),
+                "layer_grains": var(("time", "layer"), np.reshape(r["layer_n"], (-1, nl)), "1",
+                                    "grains with centres in the section slice, by the height of their centre"),
+                "layer_velocity": var(("time", "layer"), np.reshape(r["layer_u"], (-1, nl)), "m s-1",
+                                      "mean axial velocity of the grains of a layer of the section slice "
+                                      "(0 without grains)"),
+                "layer_velocity_rms": var(("time", "layer"), np.reshape(r["layer_rms"], (-1, nl)), "m s-1",
+                                          "rms of the axial grain velocity about the layer's mean (0 without grains)"),
                 "pressure_drop": var(("time",), r["dp"], "Pa", "gas pressure at the inlet minus outlet"),
                 "grains_in_tube": var(("time",), r["n_tube"], "1", "free grains with 0 <= x < L"),
                 "outflow_count": var(("time",), r["outflow"], "1", "grains left through the outlet since the start of the run"),
@@ -590,7 +628,15 @@ class _Simulation:
                 "grains_lost": var((), self.lost, "1", "grains lost (left the tube other than through the outlet)"),
             },
             coords={"time": ("time", time_, dict(units="s", long_name="time")),
-                    "x": ("x", grid.x, dict(units="m", long_name="axial position of the gas cells"))},
+                    "x": ("x", grid.x, dict(units="m", long_name="axial position of the gas cells")),
+                    "section_y": ("section_y", self.sec_centres, dict(units="m", long_name="horizontal position "
+                                                                      "of the section's pixel centres")),
+                    "section_z": ("section_z", self.sec_centres, dict(units="m", long_name="vertical position of "
+                                                                      "the section's pixel centres (gravity along -z "
+                                                                      "in a horizontal tube)")),
+                    "layer": ("layer", 0.5 * (self.layer_edges[1:] + self.layer_edges[:-1]),
+                              dict(units="m", long_name="height of the layer's centre (bins of grain-centre "
+                                                        "height z, d/2 wide)"))},
         )
         ds.attrs.update(
             title="dense-phase slug conveying (DEM grains + pressure-field gas)", Conventions="CF-1.8",
@@ -601,6 +647,7 @@ class _Simulation:
             feed_speed_m_s=self.v_feed, porosity_clipped_cells=int(self.phi_clipped),
             slug_criterion=f"porosity < {SLUG_POROSITY} in gas-cell slices of {grid.lx} m, every output interval",
             gas_force="-V_p grad(P)/(1 - phi) (eq. 6 of the paper as printed is not a force)",
+            section_x_m=self.sec_x, section_width_m=self.sec_w,
         )
         try:
             from importlib.metadata import version
@@ -629,14 +676,17 @@ def _comparable(c: dict) -> dict:
     """A resolved case in the form stored cases are compared in: keys that came after stored
     runs are dropped at the value those runs had — ``initial.state`` when empty (they all
     started from an empty tube), ``numerics.grain_interpolation`` when "normalised",
-    ``numerics.overlap_limit`` at its default (it judges a run, it does not change it)."""
+    ``numerics.overlap_limit`` at its default (it judges a run, it does not change it), and the
+    recorded cross-section's ``numerics.cross_section_at`` and ``cross_section_pixels`` at
+    theirs (they choose what is recorded, not what is run)."""
     same = json.loads(json.dumps(c))
     if not same.get("initial", {}).get("state", None):
         same.get("initial", {}).pop("state", None)
     if same.get("numerics", {}).get("grain_interpolation", None) == "normalised":
         same["numerics"].pop("grain_interpolation")
-    if same.get("numerics", {}).get("overlap_limit", None) == DEFAULTS["numerics"]["overlap_limit"]:
-        same["numerics"].pop("overlap_limit")
+    for key in ("overlap_limit", "cross_section_at", "cross_section_pixels"):
+        if same.get("numerics", {}).get(key, None) == DEFAULTS["numerics"][key]:
+            same["numerics"].pop(key)
     return same
 
 

@@ -162,6 +162,13 @@ def test_periodic_case_runs_without_losses(tmp_path):
     assert (ds.grains_in_tube == ds.grains_in_tube[0]).all()  # periodic: nothing enters or leaves
     assert float(ds.pressure_drop[-1]) > 0
     assert not (tmp_path / "p.nc.checkpoint").exists()
+    # the recorded cross-section (SMH Figs. 17-19): finite, a solids fraction, and the layers'
+    # grains those of the slice, whose solids volume the image holds
+    sec = ds.section_solids_fraction.values
+    assert sec.shape == (4, 14, 14) and np.isfinite(sec).all() and sec.min() >= 0 and sec.max() <= 1.0 + 1e-9
+    assert ds.attrs["section_x_m"] == 0.5 * float(slug.validate_slug_case(_short_periodic())["tube"]["length_m"])
+    assert (ds.layer_grains.sum("layer") > 0).any() or (sec == 0).all()
+    assert np.isfinite(ds.layer_velocity.values).all() and np.isfinite(ds.layer_velocity_rms.values).all()
     # the catalogue's slug velocity of SMH §3.2 / Fig. 10: each record's one slug (the slices below
     # φ = 0.6) has the largest slice grain velocity of the record's stored fields
     assert ds.sizes["slug"] == ds.sizes["time"]
@@ -302,7 +309,9 @@ def test_run_continued_from_a_state_equals_the_uninterrupted_run(tmp_path, monke
 
 @pytest.mark.parametrize("section,key,other", [("initial", "state", None),
                                                ("numerics", "grain_interpolation", "printed"),
-                                               ("numerics", "overlap_limit", None)])
+                                               ("numerics", "overlap_limit", None),
+                                               ("numerics", "cross_section_at", 0.25),
+                                               ("numerics", "cross_section_pixels", 20)])
 def test_cases_stored_before_a_key_existed_are_the_same_case(tmp_path, section, key, other):
     """A dataset or checkpoint of a run made before a key existed (its stored case has no such
     key) is the same case as today's with the key at the value those runs had -- initial.state
