@@ -5,7 +5,8 @@
 * :func:`vertical_profiles` -- gas and particle axial velocity over the vertical diameter,
   with measurements when given;
 * :func:`convergence` -- residual (and pressure-gradient) history;
-* dense-phase models: :func:`slug_spacetime`, :func:`slug_history`, :func:`slug_profiles_figure`
+* dense-phase models: :func:`slug_spacetime`, :func:`slug_history`, :func:`slug_profiles_figure`,
+  :func:`slug_cross_section`
   (``model = "dem-darcy"``; Strauss, McNamara & Herrmann Figs. 1, 12-16) and
   :func:`two_fluid_section`, :func:`two_fluid_profiles`, :func:`two_fluid_development`,
   :func:`two_fluid_convergence` (``model = "two-fluid"``; after Ding et al. Figs. 5-10);
@@ -37,7 +38,7 @@ from eulag import analysis as an
 
 __all__ = ["dataset_problem", "three_panel", "vertical_profiles", "convergence", "plot_all", "read_reference",
            "resolve_reference", "default_station", "slug_spacetime", "slug_history",
-           "slug_profiles_figure", "slug_profile_data", "two_fluid_section", "two_fluid_profiles", "two_fluid_development",
+           "slug_profiles_figure", "slug_profile_data", "slug_cross_section", "two_fluid_section", "two_fluid_profiles", "two_fluid_development",
            "two_fluid_convergence"]
 
 
@@ -552,6 +553,97 @@ def slug_profiles_figure(ds: xr.Dataset, path, x_window=None, t_min=None, min_gr
     return _save(fig, path)
 
 
+def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_s: float = 0.2) -> Path | None:
+    """Write the recorded cross-section of a slug run (``section_x_m``, SMH §3.4):
+
+    - top (after Fig. 17): ``frames`` solids-fraction images of the slice over ``span_s`` seconds
+      centred on the record after ``t_min`` where the slice is densest (a slug passing);
+    - bottom left (after Fig. 18): each layer's mean axial grain velocity against time around it;
+    - bottom right (after Fig. 19): the layer velocities against height, averaged over the records
+      while a slug passes and between slugs (:func:`eulag.slug.cross_section_layers`), with the
+      grains' rms about them.
+
+    ``t_min`` defaults to the start of the statistics window (:func:`slug_profile_data`). None
+    for a dataset without the cross-section records."""
+    from matplotlib import colormaps
+    from matplotlib.colors import Normalize
+
+    from eulag.slug import SLUG_POROSITY, cross_section_layers
+
+    if "section_solids_fraction" not in ds or "section_x_m" not in ds.attrs:
+        return None
+    if t_min is None:
+        t_min = slug_profile_data(ds)[3]
+    t = np.asarray(ds["time"].values, dtype=float)
+    xs = float(ds.attrs["section_x_m"])
+    phi_s = np.array([np.interp(xs, ds["x"].values, row) for row in np.asarray(ds["porosity"].values)])
+    after = np.flatnonzero(t >= t_min)
+    if not after.size:
+        after = np.arange(len(t))
+    k0 = int(after[np.argmin(phi_s[after])])
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else span_s
+    step = max(1, int(round(span_s / max(frames - 1, 1) / dt)))
+    idx = [k0 + (j - frames // 2) * step for j in range(frames)]
+    idx = [i for i in idx if 0 <= i < len(t)]
+    layers = cross_section_layers(ds, t_min=t_min)
+    fig = _new_figure(11.0, 6.8)
+    top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 2.3])
+    yz = 1e3 * ds["section_y"].values
+    R = 0.5 * (yz[1] - yz[0]) * len(yz)
+    inside = np.asarray(ds["section_pixel_inside"].values) >= 0.5
+    axes = np.atleast_1d(top.subplots(1, frames))
+    im = None
+    for j, ax in enumerate(axes):
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_aspect("equal")
+        if j >= len(idx):
+            ax.set_axis_off()
+            continue
+        i = idx[j]
+        img = np.where(inside, np.asarray(ds["section_solids_fraction"].values[i], dtype=float), np.nan)
+        im = ax.imshow(img, origin="lower", extent=(-R, R, -R, R), cmap="gray_r", vmin=0.0, vmax=0.7)
+        ax.add_patch(Circle((0, 0), R, fill=False, lw=0.6))
+        ax.set_title(f"{t[i]:.2f} s", fontsize=7)
+        if j == 0:
+            ax.set_ylabel("z up, y across", fontsize=6)
+    if im is not None:
+        top.colorbar(im, ax=list(axes), fraction=0.015, pad=0.01, label="solids fraction")
+    top.suptitle("solids fraction of the slice (after SMH Fig. 17)", fontsize=8)
+    ax, axr = bottom.subplots(1, 2)
+    h = 1e3 * ds["layer"].values
+    win = (t >= t[k0] - 2.5 * span_s) & (t <= t[k0] + 2.5 * span_s)
+    n = np.asarray(ds["layer_grains"].values, dtype=float)
+    u = np.where(n > 0, np.asarray(ds["layer_velocity"].values, dtype=float), np.nan)
+    norm = Normalize(h.min(), h.max())
+    cmap = colormaps["viridis"]
+    for q in range(len(h)):
+        ax.plot(t[win], u[win, q], lw=1.0, color=cmap(norm(h[q])), label=f"{h[q]:+.2f} mm")
+    ax2 = ax.twinx()
+    ax2.plot(t[win], phi_s[win], color="0.5", lw=0.8, ls="--")
+    ax2.axhline(SLUG_POROSITY, color="0.8", lw=0.6)
+    ax2.set_ylabel("slice porosity (dashed)", fontsize=8)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("layer grain velocity [m s$^{-1}$]")
+    ax.set_title("layers through the slug (after SMH Fig. 18)", fontsize=8)
+    ax.legend(fontsize=6, ncol=2, title="centre height", title_fontsize=6)
+    ax.grid(alpha=0.3)
+    ax = axr
+    for tag, colour in (("slug", "C0"), ("between", "C1")):
+        v, r = layers[f"velocity_{tag}"].values, layers[f"velocity_rms_{tag}"].values
+        ax.plot(v, h, "o-", color=colour, ms=3, label=f"{'in slugs' if tag == 'slug' else 'between slugs'} "
+                                                      f"({layers.attrs['records_' + tag]} records)")
+        ax.fill_betweenx(h, v - r, v + r, color=colour, alpha=0.15)
+    ax.set_xlabel("axial grain velocity [m s$^{-1}$] (band: rms)")
+    ax.set_ylabel("height of the grain centres [mm]")
+    ax.set_title("layer velocities (after SMH Fig. 19)", fontsize=8)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.suptitle(f"{_slug_title(ds)}\ncross-section at x = {100 * xs:.3g} cm (slice {1e3 * float(ds.attrs['section_width_m']):.3g} mm), "
+                 f"statistics t ≥ {t_min:.4g} s", fontsize=9)
+    return _save(fig, path)
+
+
 _TWO_FLUID_SECTION = (("solids_fraction", r"$\alpha_s$ [1]", "viridis"),
                       ("gas_ux", r"gas $u_x$ [m s$^{-1}$]", "viridis"),
                       ("solids_ux", r"solids $u_x$ [m s$^{-1}$]", "viridis"),
@@ -747,7 +839,8 @@ def _figure_set(ds: xr.Dataset, model: str, x: float | None, stem: str, source):
                              "figures span the tube and the run's time; allowed: no x")
         return lambda tmp: [slug_spacetime(ds, tmp / f"{stem}_spacetime.png"),
                             slug_history(ds, tmp / f"{stem}_history.png"),
-                            slug_profiles_figure(ds, tmp / f"{stem}_slug_profiles.png")]
+                            slug_profiles_figure(ds, tmp / f"{stem}_slug_profiles.png"),
+                            slug_cross_section(ds, tmp / f"{stem}_cross_section.png")]
     if model == "two-fluid":
         an.check_station(ds, x)
         tag = f"_x{_station(ds, x):.4g}m" if ds.sizes.get("x", 1) > 1 else ""

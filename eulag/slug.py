@@ -60,7 +60,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "gas_force_on_grains", "dataset_from_checkpoint",
+__all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "cross_section_layers", "layer_shear",
+           "gas_force_on_grains", "dataset_from_checkpoint",
            "check_report", "statistics_window",
            "save_state", "read_state", "state_time", "DEFAULTS", "SLUG_POROSITY"]
 
@@ -1024,6 +1025,77 @@ def slug_profiles(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, dx_max_d=
          "drag": ("dx_over_d", mean["drag"], dict(units="Pa m-1", long_name="-dP/dx, gas force per unit volume")),
          "samples": ("dx_over_d", cnt, dict(units="1", long_name="slug records averaged")), **extra_vars},
         coords={"dx_over_d": ("dx_over_d", q, dict(units="1", long_name="distance from the slug centre / d"))})
+
+
+def cross_section_layers(ds, t_min=0.0, min_layer_grains=1.0):
+    """The recorded cross-section (``section_x_m``; SMH §3.4, Figs. 17–19) averaged over the
+    records with time ≥ ``t_min``, separately while a slug passes (the slice's porosity,
+    ``porosity`` interpolated to ``section_x_m``, below :data:`SLUG_POROSITY`) and between slugs.
+
+    Per layer (grain-centre height, ``layer``): the grain-weighted mean axial velocity,
+    Σ n u / Σ n over the records; its fluctuation, the pooled rms about that mean of every grain
+    of every record, √(Σ n (rms² + (u − ū)²) / Σ n); the mean number of grains per record; and the
+    mean solids-fraction image.  Layers with fewer than ``min_layer_grains`` grains per record
+    carry NaN velocities.  Returns an xarray.Dataset; its attributes hold the record counts and
+    ``section_x_m``.  Raises ValueError for a dataset without the cross-section records."""
+    import xarray as xr
+
+    need = ("section_solids_fraction", "layer_grains", "layer_velocity", "layer_velocity_rms")
+    missing = [v for v in need if v not in ds]
+    if missing or "section_x_m" not in ds.attrs:
+        raise ValueError(f"dataset without the recorded cross-section (no {', '.join(missing) or 'section_x_m'}); "
+                         "runs record it since numerics.cross_section_at exists")
+    xs = float(ds.attrs["section_x_m"])
+    t = np.asarray(ds["time"].values, dtype=float)
+    phi_s = np.array([np.interp(xs, ds["x"].values, row) for row in np.asarray(ds["porosity"].values)])
+    use = t >= t_min
+    n = np.asarray(ds["layer_grains"].values, dtype=float)
+    u = np.asarray(ds["layer_velocity"].values, dtype=float)
+    rms = np.asarray(ds["layer_velocity_rms"].values, dtype=float)
+    img = np.asarray(ds["section_solids_fraction"].values, dtype=float)
+    out, attrs = {}, {"section_x_m": xs, "t_min_s": float(t_min)}
+    for tag, sel in (("slug", use & (phi_s < SLUG_POROSITY)), ("between", use & (phi_s >= SLUG_POROSITY))):
+        k = int(sel.sum())
+        attrs[f"records_{tag}"] = k
+        ns, us, rs = n[sel], u[sel], rms[sel]
+        tot = ns.sum(axis=0)
+        per = np.maximum(tot, 1e-300)
+        mean = (ns * us).sum(axis=0) / per
+        pooled = np.sqrt((ns * (rs ** 2 + (us - mean) ** 2)).sum(axis=0) / per)
+        thin = tot < min_layer_grains * max(k, 1)
+        mean[thin] = np.nan
+        pooled[thin] = np.nan
+        out[f"velocity_{tag}"] = (("layer",), mean, dict(units="m s-1", long_name=f"grain-weighted mean axial grain "
+                                                                                 f"velocity of the layer, {tag} records"))
+        out[f"velocity_rms_{tag}"] = (("layer",), pooled, dict(units="m s-1", long_name=f"rms of the grains' axial "
+                                                                                        f"velocity about the layer mean, {tag} records"))
+        out[f"grains_{tag}"] = (("layer",), tot / max(k, 1), dict(units="1", long_name=f"grains per record in the layer, {tag} records"))
+        out[f"section_{tag}"] = (("section_z", "section_y"), img[sel].mean(axis=0) if k else np.zeros(img.shape[1:]),
+                                 dict(units="1", long_name=f"mean solids fraction of the slice, {tag} records"))
+    return xr.Dataset(out, coords={c: ds[c] for c in ("layer", "section_y", "section_z")}, attrs=attrs)
+
+
+def layer_shear(layers) -> dict:
+    """Numbers of the layer profile in slugs from :func:`cross_section_layers` (SMH Fig. 19: the
+    lowest layers slowest, the uppermost fastest): the velocities of the lowest and uppermost
+    populated layers [m/s], their difference, whether the profile rises from the lowest to the
+    uppermost layer (Spearman rank correlation with height), and the ratio of the grain-weighted
+    fluctuation to the grain-weighted mean velocity."""
+    u = np.asarray(layers["velocity_slug"].values, dtype=float)
+    r = np.asarray(layers["velocity_rms_slug"].values, dtype=float)
+    w = np.asarray(layers["grains_slug"].values, dtype=float)
+    ok = np.isfinite(u)
+    if ok.sum() < 2:
+        return {"layers": int(ok.sum())}
+    uo, ro, wo = u[ok], r[ok], w[ok]
+    ranks = np.argsort(np.argsort(uo))
+    h = np.arange(len(uo))
+    rho = float(np.corrcoef(ranks, h)[0, 1])
+    mean = float((wo * uo).sum() / wo.sum())
+    return {"layers": int(ok.sum()), "u_lowest_m_s": float(uo[0]), "u_uppermost_m_s": float(uo[-1]),
+            "shear_m_s": float(uo[-1] - uo[0]), "rank_correlation_with_height": rho,
+            "mean_velocity_m_s": mean, "fluctuation_m_s": float(np.sqrt((wo * ro ** 2).sum() / wo.sum())),
+            "fluctuation_over_mean": float(np.sqrt((wo * ro ** 2).sum() / wo.sum()) / mean) if mean else float("nan")}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -221,6 +221,56 @@ def slug_dataset(grains=400):
     return ds
 
 
+def with_cross_section(ds):
+    """``ds`` of :func:`slug_dataset` with the cross-section records at x_s = L/2: while the slice
+    lies in the slug (t ≈ 1.13-1.29 s) 5 grains per layer at u = 0.2 + 50 h, rms 0.01 m/s, the
+    slice half full; between slugs 4 grains in each of the 3 lowest layers at 0.01 m/s."""
+    from dem.sections import layer_edges, pixel_centres, pixel_inside_fraction
+
+    e = layer_edges(3.5e-3, 1.4e-3)
+    h = 0.5 * (e[1:] + e[:-1])
+    xs = 0.2625
+    slug_at = np.array([np.interp(xs, ds["x"].values, row) for row in ds["porosity"].values]) < 0.6
+    nt, nl = ds.sizes["time"], len(h)
+    n = np.where(slug_at[:, None], 5.0, np.where(np.arange(nl)[None, :] < 3, 4.0, 0.0))
+    u = np.where(slug_at[:, None], 0.2 + 50.0 * h[None, :], np.where(n > 0, 0.01, 0.0))
+    rms = np.where(slug_at[:, None], 0.01, 0.0) * np.ones((nt, nl))
+    img = np.where(slug_at[:, None, None], 0.5, 0.1) * (pixel_inside_fraction(3.5e-3, 14) >= 0.5)[None]
+    c = pixel_centres(3.5e-3, 14)
+    return ds.assign(section_solids_fraction=(("time", "section_z", "section_y"), img),
+                     section_pixel_inside=(("section_z", "section_y"), pixel_inside_fraction(3.5e-3, 14)),
+                     layer_grains=(("time", "layer"), n), layer_velocity=(("time", "layer"), u),
+                     layer_velocity_rms=(("time", "layer"), rms)).assign_coords(
+        section_y=c, section_z=c, layer=h).assign_attrs(section_x_m=xs, section_width_m=3.5e-3)
+
+
+def test_cross_section_layers_average_in_and_between_slugs(tmp_path, capsys):
+    from eulag.slug import cross_section_layers, layer_shear
+
+    ds = with_cross_section(slug_dataset())
+    lay = cross_section_layers(ds, t_min=1.0)
+    h = ds["layer"].values
+    assert lay.attrs["records_slug"] + lay.attrs["records_between"] == 101
+    assert 10 <= lay.attrs["records_slug"] <= 20
+    assert np.allclose(lay["velocity_slug"], 0.2 + 50.0 * h)
+    assert np.allclose(lay["velocity_rms_slug"], 0.01)
+    assert np.allclose(lay["velocity_between"][:3], 0.01) and np.isnan(lay["velocity_between"][3:]).all()
+    assert np.allclose(lay["section_slug"].values[7, 7], 0.5)
+    num = layer_shear(lay)
+    assert num["shear_m_s"] == pytest.approx(50.0 * (h[-1] - h[0]))
+    assert num["rank_correlation_with_height"] == pytest.approx(1.0)
+    assert num["fluctuation_over_mean"] == pytest.approx(0.01 / 0.2)
+    with pytest.raises(ValueError, match="without the recorded cross-section"):
+        cross_section_layers(slug_dataset())
+    assert is_png(plots.slug_cross_section(ds, tmp_path / "cs.png"))
+    assert plots.slug_cross_section(slug_dataset(), tmp_path / "none.png") is None
+    nc = tmp_path / "slug.nc"
+    ds.to_netcdf(nc)
+    status, out, err = run_cli(capsys, "plot", nc)
+    assert status == 0, err
+    assert out.split()[-1].endswith("slug_cross_section.png")
+
+
 def test_slug_profiles_average_in_the_studys_window():
     """The figure's default window is the strauss study's: t >= min(end/2, 6 s) = 1 s, slugs centred
     in 15-40 cm; the synthetic slug's centre is there from t = 1.00 to 1.66 s (67 records)."""
