@@ -568,7 +568,7 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
     from matplotlib import colormaps
     from matplotlib.colors import Normalize
 
-    from eulag.slug import SLUG_POROSITY, cross_section_layers
+    from eulag.slug import SLUG_POROSITY, cross_section_layers, section_porosity
 
     if "section_solids_fraction" not in ds or "section_x_m" not in ds.attrs:
         return None
@@ -576,10 +576,13 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
         t_min = slug_profile_data(ds)[3]
     t = np.asarray(ds["time"].values, dtype=float)
     xs = float(ds.attrs["section_x_m"])
-    phi_s = np.array([np.interp(xs, ds["x"].values, row) for row in np.asarray(ds["porosity"].values)])
-    after = np.flatnonzero(t >= t_min)
+    phi_s = section_porosity(ds)
+    recorded = np.asarray(ds["section_recorded"].values) == 1 if "section_recorded" in ds else np.ones(len(t), bool)
+    after = np.flatnonzero((t >= t_min) & recorded)
     if not after.size:
-        after = np.arange(len(t))
+        after = np.flatnonzero(recorded)
+    if not after.size:
+        return None
     k0 = int(after[np.argmin(phi_s[after])])
     dt = float(np.median(np.diff(t))) if len(t) > 1 else span_s
     step = max(1, int(round(span_s / max(frames - 1, 1) / dt)))
@@ -588,8 +591,7 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
     layers = cross_section_layers(ds, t_min=t_min)
     fig = _new_figure(11.0, 6.8)
     top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 2.3])
-    yz = 1e3 * ds["section_y"].values
-    R = 0.5 * (yz[1] - yz[0]) * len(yz)
+    R = 500.0 * float(_slug_case(ds)["tube"]["diameter_m"])  # tube radius [mm]
     inside = np.asarray(ds["section_pixel_inside"].values) >= 0.5
     axes = np.atleast_1d(top.subplots(1, frames))
     im = None
@@ -606,7 +608,8 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
         ax.add_patch(Circle((0, 0), R, fill=False, lw=0.6))
         ax.set_title(f"{t[i]:.2f} s", fontsize=7)
         if j == 0:
-            ax.set_ylabel("z up, y across", fontsize=6)
+            ax.set_ylabel("z (up), y across" if ds.attrs.get("layer_coordinate") != "radius" else "y, z across",
+                          fontsize=6)
     if im is not None:
         top.colorbar(im, ax=list(axes), fraction=0.015, pad=0.01, label="solids fraction")
     top.suptitle("solids fraction of the slice (after SMH Fig. 17)", fontsize=8)
@@ -618,7 +621,7 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
     norm = Normalize(h.min(), h.max())
     cmap = colormaps["viridis"]
     for q in range(len(h)):
-        ax.plot(t[win], u[win, q], lw=1.0, color=cmap(norm(h[q])), label=f"{h[q]:+.2f} mm")
+        ax.plot(t[win], u[win, q], lw=1.0, color=cmap(norm(h[q])), label=f"{h[q]:.2f} mm")
     ax2 = ax.twinx()
     ax2.plot(t[win], phi_s[win], color="0.5", lw=0.8, ls="--")
     ax2.axhline(SLUG_POROSITY, color="0.8", lw=0.6)
@@ -626,7 +629,8 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
     ax.set_xlabel("time [s]")
     ax.set_ylabel("layer grain velocity [m s$^{-1}$]")
     ax.set_title("layers through the slug (after SMH Fig. 18)", fontsize=8)
-    ax.legend(fontsize=6, ncol=2, title="centre height", title_fontsize=6)
+    ax.legend(fontsize=6, ncol=2, title="centre " + ("radius" if ds.attrs.get("layer_coordinate") == "radius"
+                                                      else "height"), title_fontsize=6)
     ax.grid(alpha=0.3)
     ax = axr
     for tag, colour in (("slug", "C0"), ("between", "C1")):
@@ -635,7 +639,8 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
                                                       f"({layers.attrs['records_' + tag]} records)")
         ax.fill_betweenx(h, v - r, v + r, color=colour, alpha=0.15)
     ax.set_xlabel("axial grain velocity [m s$^{-1}$] (band: rms)")
-    ax.set_ylabel("height of the grain centres [mm]")
+    radial = ds.attrs.get("layer_coordinate") == "radius"
+    ax.set_ylabel(("distance of the grain centres from the axis" if radial else "height of the grain centres") + " [mm]")
     ax.set_title("layer velocities (after SMH Fig. 19)", fontsize=8)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)

@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "cross_section_layers", "layer_shear",
+           "section_porosity",
            "gas_force_on_grains", "dataset_from_checkpoint",
            "check_report", "statistics_window",
            "save_state", "read_state", "state_time", "DEFAULTS", "SLUG_POROSITY"]
@@ -109,6 +110,10 @@ _RANGES = {
     ("initial", "plug_length_m"): (0.0, 1e3, True), ("grains", "tangential_damping_ratio"): (0.0, 100.0, True),
     ("numerics", "overlap_limit"): (0.0, 1.0, False), ("numerics", "cross_section_at"): (0.0, 1.0, True),
 }
+#: numerics.cross_section_pixels: from 2 up to pixels of d/4 (20 across the paper's tube): finer
+#: pixels would resolve a single grain's outline, not a solids fraction.
+CROSS_SECTION_PIXELS_MIN = 2
+CROSS_SECTION_PIXEL_PER_D = 4
 #: numerics.overlap_limit: the largest grain overlap / d a run may reach and still count as
 #: finished. The stiffness is chosen for overlaps of about 1 % of d (docs/slug.md); the runs of
 #: the paper's system reach 0.6-2.9 % in slug flow, but 9-37 % where a resting bulk jams the tube
@@ -218,6 +223,16 @@ def validate_slug_case(case: dict) -> dict:
         raise _bad("grains", "diameter_m", gr["diameter_m"], f"< half the tube diameter ({t['diameter_m']})")
     if n["cells_x"] < 3:
         raise _bad("numerics", "cells_x", n["cells_x"], "an integer >= 3")
+    most = int(CROSS_SECTION_PIXEL_PER_D * t["diameter_m"] / gr["diameter_m"] + 1e-9)
+    if not CROSS_SECTION_PIXELS_MIN <= n["cross_section_pixels"] <= most:
+        raise _bad("numerics", "cross_section_pixels", n["cross_section_pixels"],
+                   f"an integer from {CROSS_SECTION_PIXELS_MIN} to {most} (pixels no finer than d/"
+                   f"{CROSS_SECTION_PIXEL_PER_D}: a solids fraction, not a grain's outline)")
+    half = 0.5 * (t["length_m"] / n["cells_x"]) / t["length_m"]
+    if not t["periodic"] and not half <= n["cross_section_at"] <= 1.0 - half:
+        raise _bad("numerics", "cross_section_at", n["cross_section_at"],
+                   f"{half:.4g} <= value <= {1 - half:.4g} of the tube length (the recorded slice, one gas cell wide, "
+                   f"inside the tube)")
     if n["gas_dt_s"] > n["output_interval_s"]:
         raise _bad("numerics", "gas_dt_s", n["gas_dt_s"], f"<= numerics.output_interval_s ({n['output_interval_s']})")
     if n["output_interval_s"] > n["end_time_s"]:
@@ -334,17 +349,18 @@ class _Simulation:
         self.phi_clipped = 0
         self.rec = {k: [] for k in ("time", "phi", "ux", "p", "dp", "n_tube", "outflow", "overlap", "gas_share",
                                     "wall_stress", "temperature", "contact", "section", "layer_n", "layer_u",
-                                    "layer_rms")}
+                                    "layer_rms", "section_ok")}
         # the recorded cross-section (SMH §3.4, Figs. 17-19): a gas-cell-wide slice at
         # numerics.cross_section_at of the tube length
-        from dem.sections import layer_edges, pixel_centres, pixel_inside_fraction, sphere_lattice
+        from dem.sections import layer_edges, pixel_centres, pixel_inside_fraction, radial_layer_edges
         self.sec_x = num["cross_section_at"] * self.L
         self.sec_w = self.grid.lx
         self.sec_pix = num["cross_section_pixels"]
         self.sec_inside = pixel_inside_fraction(self.Rt, self.sec_pix)
         self.sec_centres = pixel_centres(self.Rt, self.sec_pix)
-        self.sec_lattice = sphere_lattice()
-        self.layer_edges = layer_edges(self.Rt, self.d)
+        # layers by height; in a vertical tube, where gravity singles out no height, by radius
+        self.layer_radial = t["orientation"] == "vertical"
+        self.layer_edges = (radial_layer_edges if self.layer_radial else layer_edges)(self.Rt, self.d)
         self.slugs = []
         self.t_gas = 0.0
         self.t_total = 0.0
@@ -477,12 +493,13 @@ class _Simulation:
         from dem.sections import layer_velocity, solids_fraction_image
         free_pos = g.pos[:n][free]
         r["section"].append(solids_fraction_image(free_pos, self.d, self.sec_x, self.sec_w, self.Rt, self.sec_pix,
-                                                  self.periodic, self.L, self.sec_inside, self.sec_lattice))
+                                                  self.periodic, self.L, self.sec_inside))
         cnt_l, u_l, rms_l = layer_velocity(free_pos, g.vel[:n][free], self.sec_x, self.sec_w, self.layer_edges,
-                                           self.periodic, self.L)
+                                           self.periodic, self.L, radial=self.layer_radial)
         r["layer_n"].append(cnt_l)
         r["layer_u"].append(u_l)
         r["layer_rms"].append(rms_l)
+        r["section_ok"].append(1)
         # slug catalogue: runs of slices with φ < SLUG_POROSITY
         lx = grid.lx
         s = phi1 < SLUG_POROSITY
@@ -555,9 +572,13 @@ class _Simulation:
         n_rec = len(st["rec_time"])
         for k in self.rec:
             if "rec_" + k not in st:  # a checkpoint written before this record existed
-                shape = {"section": (self.sec_pix, self.sec_pix)}.get(
-                    k, (len(self.layer_edges) - 1,) if k.startswith("layer_") else (self.grid.nx,))
-                self.rec[k] = [np.full(shape, np.nan) for _ in range(n_rec)]
+                if k == "section_ok":
+                    self.rec[k] = [0] * n_rec
+                elif k == "section" or k.startswith("layer_"):  # zeros, flagged by section_ok = 0
+                    shape = (self.sec_pix, self.sec_pix) if k == "section" else (len(self.layer_edges) - 1,)
+                    self.rec[k] = [np.zeros(shape) for _ in range(n_rec)]
+                else:
+                    self.rec[k] = [np.full(self.grid.nx, np.nan) for _ in range(n_rec)]
                 continue
             a = st["rec_" + k]
             self.rec[k] = [row for row in a] if a.ndim > 1 else a.tolist()
@@ -602,12 +623,15 @@ class _Simulation:
                                      "mean magnitude of the contact force (grains and wall) per grain of a slice (0 without grains)"),
                 "section_solids_fraction": var(
                     ("time", "section_z", "section_y"), np.reshape(r["section"], (-1, self.sec_pix, self.sec_pix)),
-                    "1", f"solids volume fraction in the slice x = section_x +- {0.5 * self.sec_w:g} m (grain volume "
-                    f"sampled on a d/8 lattice; pixels less than half inside the wall: 0)"),
+                    "1", f"solids volume fraction in the slice x = section_x_m +- {0.5 * self.sec_w:g} m (each grain's "
+                    f"chords through the slice on 8 x 8 sub-cells per pixel; pixels less than half inside the wall: 0)"),
+                "section_recorded": var(("time",), np.asarray(r["section_ok"], dtype=np.int8), "1",
+                                        "1 where the record holds the section and layers (0: a record resumed from a "
+                                        "checkpoint written before they were recorded; zeros there)"),
                 "section_pixel_inside": var(("section_z", "section_y"), self.sec_inside, "1",
                                             "share of the pixel's area inside the tube wall"),
                 "layer_grains": var(("time", "layer"), np.reshape(r["layer_n"], (-1, nl)), "1",
-                                    "grains with centres in the section slice, by the height of their centre"),
+                                    "grains with centres in the section slice, by layer"),
                 "layer_velocity": var(("time", "layer"), np.reshape(r["layer_u"], (-1, nl)), "m s-1",
                                       "mean axial velocity of the grains of a layer of the section slice "
                                       "(0 without grains)"),
@@ -630,14 +654,16 @@ class _Simulation:
             },
             coords={"time": ("time", time_, dict(units="s", long_name="time")),
                     "x": ("x", grid.x, dict(units="m", long_name="axial position of the gas cells")),
-                    "section_y": ("section_y", self.sec_centres, dict(units="m", long_name="horizontal position "
-                                                                      "of the section's pixel centres")),
-                    "section_z": ("section_z", self.sec_centres, dict(units="m", long_name="vertical position of "
-                                                                      "the section's pixel centres (gravity along -z "
-                                                                      "in a horizontal tube)")),
+                    "section_y": ("section_y", self.sec_centres, dict(units="m", long_name="y position of the "
+                                                                      "section's pixel centres (horizontal)")),
+                    "section_z": ("section_z", self.sec_centres, dict(units="m", long_name="z position of the "
+                                                                      "section's pixel centres (up in a horizontal "
+                                                                      "tube, gravity along -z; horizontal in a "
+                                                                      "vertical one, gravity along -x)")),
                     "layer": ("layer", 0.5 * (self.layer_edges[1:] + self.layer_edges[:-1]),
-                              dict(units="m", long_name="height of the layer's centre (bins of grain-centre "
-                                                        "height z, d/2 wide)"))},
+                              dict(units="m", long_name=("radius" if self.layer_radial else "height") +
+                                   " of the layer's centre (bins of grain-centre " +
+                                   ("distance from the axis" if self.layer_radial else "height z") + ", d/2 wide)"))},
         )
         ds.attrs.update(
             title="dense-phase slug conveying (DEM grains + pressure-field gas)", Conventions="CF-1.8",
@@ -649,6 +675,7 @@ class _Simulation:
             slug_criterion=f"porosity < {SLUG_POROSITY} in gas-cell slices of {grid.lx} m, every output interval",
             gas_force="-V_p grad(P)/(1 - phi) (eq. 6 of the paper as printed is not a force)",
             section_x_m=self.sec_x, section_width_m=self.sec_w,
+            layer_coordinate="radius" if self.layer_radial else "height",
         )
         try:
             from importlib.metadata import version
@@ -1027,10 +1054,22 @@ def slug_profiles(ds, x_window=(0.15, 0.4), t_min=0.0, min_grains=100, dx_max_d=
         coords={"dx_over_d": ("dx_over_d", q, dict(units="1", long_name="distance from the slug centre / d"))})
 
 
+def section_porosity(ds) -> np.ndarray:
+    """The porosity of the recorded slice at ``section_x_m`` per record: ``porosity(time, x)``
+    interpolated linearly between the gas cells (periodically in a periodic tube)."""
+    xs = float(ds.attrs["section_x_m"])
+    c = json.loads(ds.attrs["case"])
+    period = float(c["tube"]["length_m"]) if c["tube"].get("periodic") else None
+    x = ds["x"].values
+    return np.array([np.interp(xs, x, row, period=period) for row in np.asarray(ds["porosity"].values)])
+
+
 def cross_section_layers(ds, t_min=0.0, min_layer_grains=1.0):
     """The recorded cross-section (``section_x_m``; SMH §3.4, Figs. 17–19) averaged over the
     records with time ≥ ``t_min``, separately while a slug passes (the slice's porosity,
-    ``porosity`` interpolated to ``section_x_m``, below :data:`SLUG_POROSITY`) and between slugs.
+    ``porosity`` interpolated to ``section_x_m``, below :data:`SLUG_POROSITY`) and between slugs;
+    records without the section (``section_recorded`` = 0) are left out.  The layers are heights
+    in a horizontal tube and radii in a vertical one (``layer_coordinate``).
 
     Per layer (grain-centre height, ``layer``): the grain-weighted mean axial velocity,
     Σ n u / Σ n over the records; its fluctuation, the pooled rms about that mean of every grain
@@ -1047,8 +1086,10 @@ def cross_section_layers(ds, t_min=0.0, min_layer_grains=1.0):
                          "runs record it since numerics.cross_section_at exists")
     xs = float(ds.attrs["section_x_m"])
     t = np.asarray(ds["time"].values, dtype=float)
-    phi_s = np.array([np.interp(xs, ds["x"].values, row) for row in np.asarray(ds["porosity"].values)])
+    phi_s = section_porosity(ds)
     use = t >= t_min
+    if "section_recorded" in ds:
+        use &= np.asarray(ds["section_recorded"].values) == 1
     n = np.asarray(ds["layer_grains"].values, dtype=float)
     u = np.asarray(ds["layer_velocity"].values, dtype=float)
     rms = np.asarray(ds["layer_velocity_rms"].values, dtype=float)
@@ -1077,9 +1118,10 @@ def cross_section_layers(ds, t_min=0.0, min_layer_grains=1.0):
 
 def layer_shear(layers) -> dict:
     """Numbers of the layer profile in slugs from :func:`cross_section_layers` (SMH Fig. 19: the
-    lowest layers slowest, the uppermost fastest): the velocities of the lowest and uppermost
-    populated layers [m/s], their difference, whether the profile rises from the lowest to the
-    uppermost layer (Spearman rank correlation with height), and the ratio of the grain-weighted
+    lowest layers slowest, the uppermost fastest; in a vertical tube, where the layers are radial,
+    "first" is the axis and "last" the wall): the velocities of the first and last populated
+    layers [m/s], their difference, how monotonically the profile rises across the layers
+    (Spearman rank correlation of velocity with layer), and the ratio of the grain-weighted
     fluctuation to the grain-weighted mean velocity."""
     u = np.asarray(layers["velocity_slug"].values, dtype=float)
     r = np.asarray(layers["velocity_rms_slug"].values, dtype=float)
@@ -1087,13 +1129,14 @@ def layer_shear(layers) -> dict:
     ok = np.isfinite(u)
     if ok.sum() < 2:
         return {"layers": int(ok.sum())}
+    from scipy.stats import rankdata
+
     uo, ro, wo = u[ok], r[ok], w[ok]
-    ranks = np.argsort(np.argsort(uo))
-    h = np.arange(len(uo))
-    rho = float(np.corrcoef(ranks, h)[0, 1])
+    ranks = rankdata(uo)  # average ranks for ties: a constant profile has no correlation (NaN)
+    rho = float(np.corrcoef(ranks, np.arange(len(uo)))[0, 1]) if np.ptp(uo) > 0 else float("nan")
     mean = float((wo * uo).sum() / wo.sum())
-    return {"layers": int(ok.sum()), "u_lowest_m_s": float(uo[0]), "u_uppermost_m_s": float(uo[-1]),
-            "shear_m_s": float(uo[-1] - uo[0]), "rank_correlation_with_height": rho,
+    return {"layers": int(ok.sum()), "u_first_m_s": float(uo[0]), "u_last_m_s": float(uo[-1]),
+            "shear_m_s": float(uo[-1] - uo[0]), "rank_correlation_with_layer": rho,
             "mean_velocity_m_s": mean, "fluctuation_m_s": float(np.sqrt((wo * ro ** 2).sum() / wo.sum())),
             "fluctuation_over_mean": float(np.sqrt((wo * ro ** 2).sum() / wo.sum()) / mean) if mean else float("nan")}
 

@@ -258,8 +258,25 @@ def test_cross_section_layers_average_in_and_between_slugs(tmp_path, capsys):
     assert np.allclose(lay["section_slug"].values[7, 7], 0.5)
     num = layer_shear(lay)
     assert num["shear_m_s"] == pytest.approx(50.0 * (h[-1] - h[0]))
-    assert num["rank_correlation_with_height"] == pytest.approx(1.0)
+    assert num["rank_correlation_with_layer"] == pytest.approx(1.0)
     assert num["fluctuation_over_mean"] == pytest.approx(0.01 / 0.2)
+    # the pooled statistics against the pooled grains: records of one layer with other n, u, rms
+    uneven = ds.copy(deep=True)
+    slug_rec = np.flatnonzero(uneven["layer_grains"].values[:, 0] == 5)
+    rng = np.random.default_rng(2)
+    samples = []
+    for i in slug_rec:
+        g = rng.normal(0.2, 0.05, int(rng.integers(1, 9)))
+        uneven["layer_grains"].values[i, 0], uneven["layer_velocity"].values[i, 0] = len(g), g.mean()
+        uneven["layer_velocity_rms"].values[i, 0] = g.std()
+        samples.extend(g)
+    lay = cross_section_layers(uneven, t_min=0.0)
+    assert np.isclose(lay["velocity_slug"].values[0], np.mean(samples))
+    assert np.isclose(lay["velocity_rms_slug"].values[0], np.std(samples))
+    # ties: a constant profile has no rank correlation; a tied one the average-rank value
+    flat = lay.copy(deep=True)
+    flat["velocity_slug"].values[:] = 0.3
+    assert np.isnan(layer_shear(flat)["rank_correlation_with_layer"])
     with pytest.raises(ValueError, match="without the recorded cross-section"):
         cross_section_layers(slug_dataset())
     assert is_png(plots.slug_cross_section(ds, tmp_path / "cs.png"))
