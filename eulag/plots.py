@@ -557,7 +557,8 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
     """Write the recorded cross-section of a slug run (``section_x_m``, SMH §3.4):
 
     - top (after Fig. 17): ``frames`` solids-fraction images of the slice over ``span_s`` seconds
-      centred on the record after ``t_min`` where the slice is densest (a slug passing);
+      centred on the record after ``t_min`` where the slice is densest (a slug passing; among
+      the records at least 2.5 ``span_s`` from the run's ends where there are such);
     - bottom left (after Fig. 18): each layer's mean axial grain velocity against time around it;
     - bottom right (after Fig. 19): the layer velocities against height, averaged over the records
       while a slug passes and between slugs (:func:`eulag.slug.cross_section_layers`), with the
@@ -583,7 +584,10 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
         after = np.flatnonzero(recorded)
     if not after.size:
         return None
-    k0 = int(after[np.argmin(phi_s[after])])
+    # the densest record whose frames and layer window lie inside the run, if there is one
+    whole = after[(t[after] - 2.5 * span_s >= t[0]) & (t[after] + 2.5 * span_s <= t[-1])]
+    pool = whole if whole.size else after
+    k0 = int(pool[np.argmin(phi_s[pool])])
     dt = float(np.median(np.diff(t))) if len(t) > 1 else span_s
     step = max(1, int(round(span_s / max(frames - 1, 1) / dt)))
     idx = [k0 + (j - frames // 2) * step for j in range(frames)]

@@ -1116,16 +1116,17 @@ def cross_section_layers(ds, t_min=0.0, min_layer_grains=1.0):
     return xr.Dataset(out, coords={c: ds[c] for c in ("layer", "section_y", "section_z")}, attrs=attrs)
 
 
-def layer_shear(layers) -> dict:
+def layer_shear(layers, tag: str = "slug") -> dict:
     """Numbers of the layer profile in slugs from :func:`cross_section_layers` (SMH Fig. 19: the
     lowest layers slowest, the uppermost fastest; in a vertical tube, where the layers are radial,
     "first" is the axis and "last" the wall): the velocities of the first and last populated
     layers [m/s], their difference, how monotonically the profile rises across the layers
     (Spearman rank correlation of velocity with layer), and the ratio of the grain-weighted
-    fluctuation to the grain-weighted mean velocity."""
-    u = np.asarray(layers["velocity_slug"].values, dtype=float)
-    r = np.asarray(layers["velocity_rms_slug"].values, dtype=float)
-    w = np.asarray(layers["grains_slug"].values, dtype=float)
+    fluctuation to the grain-weighted mean velocity.  ``tag``: "slug" (records while a slug passes
+    the slice) or "between"."""
+    u = np.asarray(layers[f"velocity_{tag}"].values, dtype=float)
+    r = np.asarray(layers[f"velocity_rms_{tag}"].values, dtype=float)
+    w = np.asarray(layers[f"grains_{tag}"].values, dtype=float)
     ok = np.isfinite(u)
     if ok.sum() < 2:
         return {"layers": int(ok.sum())}
