@@ -277,3 +277,37 @@ def test_the_development_table_gives_the_papers_measure_where_the_record_has_it(
     old = [{k: v for k, v in d.items() if k != "max_velocity"} for d in dev]
     text = "\n".join(strauss._development_text(plan, {"h": SimpleNamespace(ok=True, metrics=dict(metrics, development=old))}))
     assert "max granular velocity" not in text and "| min porosity | 0.550 | 0.500 |" in text
+
+
+def test_the_comparison_judges_the_layers_of_the_cross_section():
+    """Fig. 19 / §4: horizontal slugs sheared with the uppermost layer fastest (rank correlation
+    ≥ 0.8); vertical plugs at one velocity (wall minus axis layer below 10 % of the mean); runs
+    without the records say so instead of a verdict."""
+    from types import SimpleNamespace
+
+    plan = {"h": (("long",), {"end_s": 22.5}, None), "v": (("vertical",), {"end_s": 10.0}, None)}
+    base = {"pressure_drop_Pa": 400.0, "pressure_drop_per_length_Pa_m": 760.0, "grains_in_tube": 3000.0,
+            "grains_lost": 0, "max_overlap_per_d": 0.009, "t_from_s": 6.0}
+
+    def layers(shear, mean, rho):
+        return {"coordinate": "height", "records_slug": 40, "records_between": 400,
+                "slug": {"layers": 8, "shear_m_s": shear, "mean_velocity_m_s": mean,
+                         "rank_correlation_with_layer": rho}, "between": {"layers": 3}}
+
+    h = dict(base, layers=layers(0.18, 0.35, 0.98))
+    v = dict(base, layers=layers(-0.074, 0.236, -1.0))
+    records = {"h": SimpleNamespace(ok=True, metrics=h), "v": SimpleNamespace(ok=True, metrics=v)}
+    rows = {r["quantity"]: r for r in strauss.comparison(plan, records)}
+    hr = rows["layers in a slug at half the length: uppermost minus lowest [m/s]"]
+    vr = rows["vertical: radial layers in a plug, wall minus axis layer [m/s]"]
+    assert hr["verdict"] == "within" and hr["here"].startswith("+0.180 (+51 % of the mean 0.350)")
+    assert vr["verdict"] == "outside" and vr["here"].startswith("-0.074 (-31 %")
+    v["layers"] = layers(-0.01, 0.236, -0.4)
+    h["layers"] = layers(0.05, 0.35, 0.3)
+    rows = {r["quantity"]: r for r in strauss.comparison(plan, records)}
+    assert rows["vertical: radial layers in a plug, wall minus axis layer [m/s]"]["verdict"] == "within"
+    assert rows["layers in a slug at half the length: uppermost minus lowest [m/s]"]["verdict"] == "outside"
+    del h["layers"]
+    rows = {r["quantity"]: r for r in strauss.comparison(plan, records)}
+    row = rows["layers in a slug at half the length: uppermost minus lowest [m/s]"]
+    assert row["verdict"] == "—" and row["here"].startswith("no records of the cross-section")

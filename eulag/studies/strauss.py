@@ -327,11 +327,21 @@ def extract_metrics(ds, case, outdir: Path | None = None, name: str = "", spacet
     m["wall_time_s"] = float(ds.attrs.get("wall_time_s", math.nan))
     reg = classify_regime(ds, t_min=t_from)
     m.update(reg)
+    if "section_solids_fraction" in ds and "section_x_m" in ds.attrs:  # the cross-section (SMH §3.4)
+        from eulag.slug import cross_section_layers, layer_shear
+
+        lay = cross_section_layers(ds, t_min=t_from)
+        m["layers"] = {"coordinate": ds.attrs.get("layer_coordinate", "height"),
+                       "records_slug": lay.attrs["records_slug"], "records_between": lay.attrs["records_between"],
+                       "slug": layer_shear(lay, "slug"), "between": layer_shear(lay, "between")}
     if spacetime and outdir is not None:
-        from eulag.plots import slug_profiles_figure, slug_spacetime
+        from eulag.plots import slug_cross_section, slug_profiles_figure, slug_spacetime
 
         m["figures"] = [slug_spacetime(ds, outdir / f"spacetime_{name}.png", title=name),
                         slug_profiles_figure(ds, outdir / f"slug_profiles_{name}.png", x_window=xw, t_min=t_from)]
+        cs = slug_cross_section(ds, outdir / f"cross_section_{name}.png", t_min=t_from)
+        if cs is not None:
+            m["figures"].append(cs)
     if spacetime and case.data["tube"]["orientation"] == "horizontal":
         L = float(case.data["tube"]["length_m"])
         dev = []
@@ -475,6 +485,30 @@ def _filling(m) -> str:
     return f"tube still filling (outflow / feed {share:.2f})"
 
 
+def _layer_row(m, quantity: str, paper: str, rising: bool) -> dict:
+    """The comparison row of the layer velocities in the slugs at the recorded cross-section
+    (``m["layers"]``, :func:`eulag.slug.layer_shear`): last minus first layer, its share of the mean
+    velocity and the rank correlation with the layer.  ``rising``: the paper's horizontal slugs
+    (sheared, the uppermost layer fastest: "within" when the rank correlation is ≥ 0.8); else the
+    vertical plugs (one velocity: "within" when the difference is below 10 % of the mean)."""
+    lay = m.get("layers")
+    if not lay or lay["slug"].get("layers", 0) < 2:
+        why = "no records of the cross-section (runs before it was recorded)" if not lay else "no slug passed it"
+        return {"quantity": quantity, "paper": paper, "tolerance": "—", "here": why, "verdict": "—"}
+    sl = lay["slug"]
+    share = sl["shear_m_s"] / sl["mean_velocity_m_s"] if sl["mean_velocity_m_s"] else math.nan
+    here = (f"{sl['shear_m_s']:+.3f} ({100 * share:+.0f} % of the mean {sl['mean_velocity_m_s']:.3f}), rank correlation "
+            f"{sl['rank_correlation_with_layer']:+.2f}, {lay['records_slug']} records in a slug")
+    if rising:
+        ok = sl["rank_correlation_with_layer"] >= 0.8
+        tol = "rank correlation with height ≥ 0.8"
+    else:
+        ok = abs(share) < 0.1
+        tol = "|difference| < 10 % of the mean"
+    return {"quantity": quantity, "paper": paper, "tolerance": tol, "here": here,
+            "verdict": "within" if ok else "outside"}
+
+
 def comparison(plan, records) -> list[dict]:
     """Each measured number beside the paper's (rows: quantity, paper, tolerance, this study,
     verdict); a run still filling over its window (:func:`_filling`) is listed, not judged."""
@@ -504,6 +538,8 @@ def comparison(plan, records) -> list[dict]:
             out.append(judged({"quantity": q, "paper": paper, "tolerance": tol,
                                "here": (fmt.format(v) if math.isfinite(v) else "—") + " " + src,
                                "verdict": _within(v, lo, hi)}, m))
+        out.append(judged(_layer_row(m, "layers in a slug at half the length: uppermost minus lowest [m/s]",
+                                     "lowest slowest, uppermost fastest (§3.4, Fig. 19)", rising=True), m))
         out.append({"quantity": "grains lost; max overlap / d", "paper": "0; < 1 % (choice)", "tolerance": "—",
                     "here": f"{m['grains_lost']}; {m['max_overlap_per_d'] * 100:.2f} %",
                     "verdict": "within" if m["grains_lost"] == 0 and m["max_overlap_per_d"] < 0.01 else "outside"})
@@ -519,6 +555,8 @@ def comparison(plan, records) -> list[dict]:
                            "paper": "0.17 (§4, beside the 0.3 of Fig. 10)", "tolerance": "± 30 % (0.12–0.22)",
                            "here": _fmt(v, "{:.3f}") + f" (t ≥ {m['t_from_s']:g} s)",
                            "verdict": _within(v, 0.119, 0.221)}, m))
+        out.append(judged(_layer_row(m, "vertical: radial layers in a plug, wall minus axis layer [m/s]",
+                                     "a small difference, one velocity within the plug (§4)", rising=False), m))
         vc = m.get("slug_velocity_m_s")
         out.append(judged({"quantity": "vertical plug velocity: the plug centres' speed [m/s]",
                            "paper": "0.17, if it is the plugs' own speed", "tolerance": "± 30 % (0.12–0.22)",
