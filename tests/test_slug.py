@@ -234,29 +234,27 @@ def test_a_stored_run_beyond_the_overlap_limit_is_judged_again(tmp_path, capsys)
 
 
 def test_resume_after_kill_is_bit_identical(tmp_path, monkeypatch):
+    """kill -9 after a checkpoint + --resume gives the uninterrupted result bit for bit.  The same
+    checkpoint without the cross-section records (as written before they existed) resumes too:
+    its records carry zeros flagged section_recorded = 0 (every float finite, as the dataset
+    schema asks), the records after it the section, and the layer averages take only those."""
     case = _short_periodic(end=0.03, ckpt=0.01)
     full = slug.run_slug(case, tmp_path / "a.nc", progress=False)
-    assert killed_after_checkpoint(case, tmp_path / "b.nc", monkeypatch, n=2).exists()
+    ckpt = killed_after_checkpoint(case, tmp_path / "b.nc", monkeypatch, n=2)
+    assert ckpt.exists()
+    old_ckpt = slug.checkpoint_path(tmp_path / "c.nc")
+    with np.load(ckpt) as z:
+        old = {k: z[k] for k in z.files if k not in ("rec_section", "rec_layer_n", "rec_layer_u", "rec_layer_rms",
+                                                     "rec_section_ok")}
+    with open(old_ckpt, "wb") as fh:
+        np.savez(fh, **old)
     resumed = slug.run_slug(case, tmp_path / "b.nc", resume=True, progress=False)
     for name, v in full.data_vars.items():
         if name == "gas_solve_share":  # wall-clock
             continue
         assert np.array_equal(v.values, resumed[name].values, equal_nan=True), name
 
-
-def test_resume_of_a_checkpoint_written_before_the_section_was_recorded(tmp_path, monkeypatch):
-    """A checkpoint without the cross-section records resumes: its records carry zeros flagged
-    section_recorded = 0 (every float finite, as the dataset schema asks), the records after it
-    the section, and the layer averages take only those."""
-    case = _short_periodic(end=0.03, ckpt=0.01)
-    full = slug.run_slug(case, tmp_path / "a.nc", progress=False)
-    ckpt = killed_after_checkpoint(case, tmp_path / "b.nc", monkeypatch, n=2)
-    with np.load(ckpt) as z:
-        old = {k: z[k] for k in z.files if k not in ("rec_section", "rec_layer_n", "rec_layer_u", "rec_layer_rms",
-                                                     "rec_section_ok")}
-    with open(ckpt, "wb") as fh:
-        np.savez(fh, **old)
-    resumed = slug.run_slug(case, tmp_path / "b.nc", resume=True, progress=False)
+    resumed = slug.run_slug(case, tmp_path / "c.nc", resume=True, progress=False)
     flag = resumed.section_recorded.values
     assert list(flag) == [0, 0, 0, 0, 1, 1] and list(full.section_recorded.values) == [1] * 6
     for v in ("section_solids_fraction", "layer_grains", "layer_velocity", "layer_velocity_rms"):

@@ -133,7 +133,7 @@ def test_pressure_drop_converges_with_the_axial_step():
 
 
 def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, monkeypatch):
-    case = small_case(nr=6, nt=12, length=0.2)
+    case = small_case(nr=6, nt=12, length=0.1)
     whole = run_two_fluid(case, tmp_path / "whole.nc")
     assert whole.attrs["converged"] == "true" and whole.sizes["x"] > 12
     assert float(whole.pressure_drop) == pytest.approx(float(whole.pressure[-1]) * -1, rel=1e-12)
@@ -158,7 +158,7 @@ def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, monkeypatch):
 
 
 def test_a_torn_checkpoint_counts_as_none(tmp_path):
-    case = small_case(nr=6, nt=12, length=0.1)
+    case = small_case(nr=6, nt=12, length=0.03)
     out = tmp_path / "tf.nc"
     tf.checkpoint_path(out).write_bytes(b"PK\x03\x04 torn")
     ds = run_two_fluid(case, out, resume=True)
