@@ -384,7 +384,12 @@ def test_the_base_case_runs_at_the_study_resolution_wherever_its_file_lies(tmp_p
     assert studies._base_case(False, changed).numerics.axial_cells == 160
 
 
+@pytest.mark.slow
 def test_error_runtime_quick(tmp_path):
+    """The quick study end to end: nine coupled loops, one of them with the paper's step rule, a
+    kernel of its own (46 s from a cold numba cache, so in the slow set; the plan is tested by
+    test_error_runtime_plan_covers_the_axes_of_the_issue, the Pareto front and the profile
+    deviation by the tests below)."""
     assert study("error-runtime", BASE, "--quick", "--quiet", "-o", tmp_path) == 0
     table = check_report(tmp_path, "error-runtime", 9)
     assert len(list(tmp_path.glob("*.nc"))) == 9
