@@ -98,7 +98,7 @@ def solids_fraction_image(pos: np.ndarray, diameter: float, x_s: float, width: f
         s = np.sqrt(np.maximum(r * r - rho2, 0.0))
         lo = np.maximum(rel[:, None, None] - s, -0.5 * width)
         hi = np.minimum(rel[:, None, None] + s, 0.5 * width)
-        chord = np.maximum(hi - lo, 0.0) * (s > 0)
+        chord = np.maximum(hi - lo, 0.0)   # 0 off the sphere (s = 0) and off the slab
         total = chord.sum(axis=(1, 2))
         scale = np.divide(slab_volume(rel, r, width), total * hs * hs, out=np.zeros_like(total), where=total > 0)
         w = chord * (hs * hs) * scale[:, None, None]

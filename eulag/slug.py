@@ -1136,10 +1136,11 @@ def layer_shear(layers, tag: str = "slug") -> dict:
     ranks = rankdata(uo)  # average ranks for ties: a constant profile has no correlation (NaN)
     rho = float(np.corrcoef(ranks, np.arange(len(uo)))[0, 1]) if np.ptp(uo) > 0 else float("nan")
     mean = float((wo * uo).sum() / wo.sum())
+    fluct = float(np.sqrt((wo * ro ** 2).sum() / wo.sum()))
     return {"layers": int(ok.sum()), "u_first_m_s": float(uo[0]), "u_last_m_s": float(uo[-1]),
             "shear_m_s": float(uo[-1] - uo[0]), "rank_correlation_with_layer": rho,
-            "mean_velocity_m_s": mean, "fluctuation_m_s": float(np.sqrt((wo * ro ** 2).sum() / wo.sum())),
-            "fluctuation_over_mean": float(np.sqrt((wo * ro ** 2).sum() / wo.sum()) / mean) if mean else float("nan")}
+            "mean_velocity_m_s": mean, "fluctuation_m_s": fluct,
+            "fluctuation_over_mean": fluct / mean if mean else float("nan")}
 
 
 # ---------------------------------------------------------------------------------------------
