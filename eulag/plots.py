@@ -584,8 +584,9 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
         after = np.flatnonzero(recorded)
     if not after.size:
         return None
+    half_window = 2.5 * span_s  # of the layer velocities' panel (after Fig. 18) about that record
     # the densest record whose frames and layer window lie inside the run, if there is one
-    whole = after[(t[after] - 2.5 * span_s >= t[0]) & (t[after] + 2.5 * span_s <= t[-1])]
+    whole = after[(t[after] - half_window >= t[0]) & (t[after] + half_window <= t[-1])]
     pool = whole if whole.size else after
     k0 = int(pool[np.argmin(phi_s[pool])])
     dt = float(np.median(np.diff(t))) if len(t) > 1 else span_s
@@ -619,7 +620,7 @@ def slug_cross_section(ds: xr.Dataset, path, t_min=None, frames: int = 11, span_
     top.suptitle("solids fraction of the slice (after SMH Fig. 17)", fontsize=8)
     ax, axr = bottom.subplots(1, 2)
     h = 1e3 * ds["layer"].values
-    win = (t >= t[k0] - 2.5 * span_s) & (t <= t[k0] + 2.5 * span_s)
+    win = (t >= t[k0] - half_window) & (t <= t[k0] + half_window)
     n = np.asarray(ds["layer_grains"].values, dtype=float)
     u = np.where(n > 0, np.asarray(ds["layer_velocity"].values, dtype=float), np.nan)
     norm = Normalize(h.min(), h.max())

@@ -1,6 +1,6 @@
 """Anderson mixing (Walker & Ni 2011, type II) of the coupling loop's relaxed sources: trial code.
-Env AA_M (depth, default 5), AA_GMAX (restart when sum|gamma| exceeds, default 10), AA_STATS=1 (also
-mix the returned acceleration columns: not implemented)."""
+Env AA_M (depth, default 5), AA_GMAX (restart when sum|gamma| exceeds, default 10), AA_START (first
+pass mixed, default 12). The collision statistics and the returned acceleration relax as shipped."""
 import os, math
 import numpy as np
 import eulag.coupling as C
