@@ -38,7 +38,7 @@ from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
 from .linalg import AndersonMixing, LaggedSparseLU
-from .operators import face_sums, matvec
+from .operators import CoupledCrossFlow, face_sums, matvec
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -309,7 +309,7 @@ class _StationSolver:
         self.limited = 0
         self.floored = 0
         self.last_change = (math.nan, math.nan)  # (velocity / U_b, k-eps relative) of the last iteration
-        self._coupled_blocks = None  # constant blocks of the coupled cross-flow system
+        self._coupled_system = None  # the coupled cross-flow system's fixed pattern (CoupledCrossFlow)
         # one lagged factorisation per equation, carried across iterations and stations
         # (rans.linalg.LaggedFactor: the direct solution to 1e-10 per cell, relative to the cell's
         # value, with a floor of 1e-3 of the largest for the cross flow and pressure correction
@@ -599,51 +599,21 @@ class _StationSolver:
         (a_P of the steady operator, without the pseudo-march term).
         """
         sec, rho, A = self.sec, self.rho, self.sec.area
-        M = sec.matrix(diag_m, aPN, aNP)
-        d_f = sec.interp(d)
-        Dg = sp.diags  # shorthand
-        if self._coupled_blocks is None:  # the blocks that depend on the geometry only
-            nzI, nyI = -Dg(sec.nz) @ sec.I, Dg(sec.ny) @ sec.I
-            K = rho * sec.div @ Dg(sec.S)
-            self._coupled_blocks = (nzI, nyI, K,
-                                    Dg(A) @ sec.Rz @ sec.Dn,  # -A R_z(-Dn p) = +A R_z Dn p
-                                    Dg(A) @ sec.Ry @ sec.Dn,
-                                    K @ Dg(sec.nz) @ sec.I, K @ Dg(sec.ny) @ sec.I)
-        nzI, nyI, K, Gz, Gy, Cz, Cy = self._coupled_blocks
-        Q = (nzI @ Dg(d) @ sec.Rz - nyI @ Dg(d) @ sec.Ry + Dg(d_f))
-        Cp = _pin_pressure_level(-(K @ Q @ sec.Dn), sec.wall[0])
-        rz = bz + A * (sec.Rz @ fn)
-        ry = by + A * (sec.Ry @ fn)
-        rc = -(K @ (Q @ fn))
+        if self._coupled_system is None:  # the pattern and the blocks that depend on the geometry only
+            self._coupled_system = CoupledCrossFlow(sec, rho)
+        cs = self._coupled_system
+        rz = bz + A * matvec(sec.Rz, fn)
+        ry = by + A * matvec(sec.Ry, fn)
+        rc = -cs.continuity(cs.interpolated(fn, d))
         if axial_part is not None:
             rc = rc - axial_part
-        big = sp.bmat([[M, None, Gz], [None, M, Gy], [Cz, Cy, Cp]], format="csc")
-        sol = self._coupled_factor(big).solve(np.concatenate([rz, ry, rc]))
+        sol = self._coupled_factor(cs.matrix(diag_m, aPN, aNP, d)).solve(np.concatenate([rz, ry, rc]))
         n = sec.n
         uz, uy, p = sol[:n], sol[n:2 * n], sol[2 * n:]
         p = p - (A @ p) / self.area_total
-        g = -sec.Dn @ p + fn
-        flux = rho * sec.S * (sec.nz * (sec.I @ uz) + sec.ny * (sec.I @ uy) + Q @ g)
+        g = -matvec(sec.Dn, p) + fn
+        flux = rho * sec.S * (sec.nz * sec.interp(uz) + sec.ny * sec.interp(uy) + cs.interpolated(g, d))
         return uz, uy, p, flux
-
-
-def _pin_pressure_level(C, w):
-    """C (CSR, canonical: duplicates summed, indices sorted) with 10³ × its largest diagonal
-    magnitude added at (w, w): the continuity block with the pressure level pinned in cell w.
-    The same pattern and values as ``-(X).tolil()``, ``+=``, ``tocsr()`` (equal to the bit on
-    300 coupled steps of scene h), 25× faster."""
-    C = C.tocsr(copy=True)
-    C.sum_duplicates()
-    C.sort_indices()
-    lo, hi = C.indptr[w], C.indptr[w + 1]
-    pos = lo + int(np.searchsorted(C.indices[lo:hi], w))
-    pin = abs(C.diagonal()).max() * 1e3
-    if pos < hi and C.indices[pos] == w:
-        C.data[pos] += pin
-        return C
-    C = C.tolil()  # no (w, w) entry in the pattern (not met in practice): insert it
-    C[w, w] += pin
-    return C.tocsr()
 
 
 def _source_slices(sources, i, n):

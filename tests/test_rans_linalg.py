@@ -161,6 +161,35 @@ def test_lagged_factor_factorises_the_next_matrix_after_a_slow_refinement():
     assert lag.factorisations == 2 and lag._fresh
 
 
+@pytest.mark.parametrize("krylov", [0, 30])
+def test_lagged_sparse_lu_with_gmres_keeps_a_factorisation_that_the_refinement_must_replace(krylov):
+    # a held factorisation of A0 for A1 = A0 + a strong rank-3 change: LU0^-1 A1 has three
+    # eigenvalues far from 1, so the plain refinement diverges and factorises afresh, while
+    # GMRES preconditioned with LU0 converges in a few iterations (rank + 1 in exact arithmetic,
+    # a few more to its residual of 1e-14 |b| in floating point) to the direct solution of A1
+    import scipy.sparse as sp
+
+    from rans.linalg import LaggedSparseLU
+
+    rng = np.random.default_rng(11)
+    n = 300
+    off = sp.random(n, n, density=0.02, random_state=rng, format="csc")
+    A0 = (off + sp.diags(np.abs(off).sum(axis=1).A1 + 1.0)).tocsc()
+    u, v = rng.normal(size=(n, 3)), rng.normal(size=(3, n))
+    A1 = sp.csc_matrix(A0.toarray() + 5.0 * u @ v)  # dense: the pattern of a full matrix
+    A0 = sp.csc_matrix(A0.toarray() + 1e-300 * (u @ v != 0))  # the same pattern, numerically A0
+    b = rng.normal(size=n)
+    lag = LaggedSparseLU((n,), krylov=krylov)
+    lag.factor(A0).solve(b)
+    x = lag.factor(A1).solve(b)
+    exact = splu(A1).solve(b)
+    np.testing.assert_allclose(x, exact, rtol=0, atol=1e-9 * np.abs(exact).max())
+    if krylov:
+        assert lag.factorisations == 1 and lag.refined == 1 and 0 < lag.krylov_iterations <= 15
+    else:
+        assert lag.factorisations == 2 and lag.refined == 0
+
+
 def test_march_with_lagged_factorisations_equals_the_direct_march(monkeypatch):
     # a developing pipe with a noisy particle-like k sink (tests/benchmarks/bench_rans_sinks.py): every station converges
     # to the same fields as when every matrix is factorised (to far below the station tolerance).

@@ -617,44 +617,38 @@ def test_drag_source_without_its_reference_velocity_is_rejected():
                                             velocity_reference=np.zeros((3,) + m.shape)))
 
 
-@pytest.mark.filterwarnings("ignore::scipy.sparse.SparseEfficiencyWarning")  # the former route, where (w, w) is new
-@pytest.mark.parametrize("seed", range(6))
-def test_pinned_continuity_block_is_the_former_one_to_the_bit(seed):
-    """rans.solver._pin_pressure_level (the coupled cross-flow step's continuity block with the
-    pressure level pinned) gives the matrix the former route gave, value for value and index for
-    index (SuperLU then factors the same matrix: a station's solution does not change), also
-    with explicit zeros, duplicates and a pinned cell that has no diagonal entry."""
+@pytest.mark.parametrize("nr, nt", [(6, 8), (20, 40)])
+def test_coupled_cross_flow_system_is_the_product_of_its_defining_operators(nr, nt):
+    """rans.operators.CoupledCrossFlow (the coupled step's 3n system in a fixed pattern, C_p from
+    a precomputed linear map of the momentum-interpolation weights) against the system built
+    from its definition with scipy's sparse products: the same entries to round-off, the same
+    momentum-interpolated face values and continuity rows."""
     import scipy.sparse as sp
 
-    from rans.solver import _pin_pressure_level
+    from rans.operators import CoupledCrossFlow
 
-    rng = np.random.default_rng(seed)
-    n = 60
-    # raw CSR rows with unsorted columns, duplicates and explicit zeros (as a product may hold)
-    indptr, indices, data = [0], [], []
-    for i in range(n):
-        cols = list(rng.choice(n, size=int(rng.integers(2, 9)), replace=False)) + [i]
-        cols += list(rng.choice(cols, size=2))  # duplicates
-        rng.shuffle(cols)
-        vals = rng.normal(size=len(cols))
-        vals[rng.random(len(cols)) < 0.1] = 0.0
-        indices += [int(c) for c in cols]
-        data += list(vals)
-        indptr.append(len(indices))
-    C = sp.csr_matrix((np.array(data), np.array(indices), np.array(indptr)), shape=(n, n))
-    w = int(rng.integers(0, n))
-    if seed % 2:  # no (w, w) entry
-        C = C.tolil()
-        C[w, w] = 0.0
-        C = C.tocsr()
-        C.eliminate_zeros()
-    old = -C.tolil()  # the former route, -(X).tolil() (a CSR matrix), then +=
-    old[w, w] += abs(old.diagonal()).max() * 1e3
-    old = old.tocsr()
-    new = _pin_pressure_level(-C, w)
-    assert np.array_equal(new.indptr, old.indptr)
-    assert np.array_equal(new.indices, old.indices)
-    assert np.array_equal(new.data, old.data)
+    mesh = PipeMesh.build(0.0305, 0.1, "periodic", radial_cells=nr, azimuthal_cells=nt)
+    sec = mesh.geometry()
+    rng = np.random.default_rng(nr)
+    n, nf = sec.n, sec.nf
+    diag, a_PN, a_NP = rng.uniform(1.0, 2.0, n), -rng.uniform(0.0, 0.3, nf), -rng.uniform(0.0, 0.3, nf)
+    d = rng.uniform(0.1, 1.0, n)
+    D = sp.diags
+    K = RHO * sec.div @ D(sec.S)
+    Q = -D(sec.nz) @ sec.I @ D(d) @ sec.Rz - D(sec.ny) @ sec.I @ D(d) @ sec.Ry + D(sec.interp(d))
+    Cp = (-(K @ Q @ sec.Dn)).tolil()
+    w = sec.wall[0]
+    Cp[w, w] += 1e3 * np.abs(Cp.diagonal()).max()
+    M = sec.matrix(diag, a_PN, a_NP)
+    ref = sp.bmat([[M, None, D(sec.area) @ sec.Rz @ sec.Dn], [None, M, D(sec.area) @ sec.Ry @ sec.Dn],
+                   [K @ D(sec.nz) @ sec.I, K @ D(sec.ny) @ sec.I, Cp]]).toarray()
+    system = CoupledCrossFlow(sec, RHO)
+    got = system.matrix(diag, a_PN, a_NP, d)
+    assert got.has_sorted_indices and got.nnz == system.nnz
+    np.testing.assert_allclose(got.toarray(), ref, rtol=0, atol=1e-13 * np.abs(ref).max())
+    v = rng.normal(size=nf)
+    np.testing.assert_allclose(system.interpolated(v, d), Q @ v, rtol=0, atol=1e-14 * np.abs(Q @ v).max())
+    np.testing.assert_allclose(system.continuity(v), K @ v, rtol=0, atol=1e-14 * np.abs(K @ v).max())
 
 
 def _sinks(m, ref, scale):
