@@ -287,8 +287,8 @@ class CoupledCrossFlow:
     every outer iteration, the rest is geometry.  C_p is linear in (d, d_f): each of its three
     terms is a sum over j of a column of a constant matrix times a row of another, weighted by
     d_j, so its entries are one sparse product with (d, d_f) (:meth:`matrix`), instead of the
-    products of scipy matrices and ``bmat`` of every iteration (about 4 ms for a 20 × 40
-    section).  The entries equal those of the products up to the order of summation."""
+    products of scipy matrices and ``bmat`` of every iteration (0.24 against 2.2 ms for a
+    20 × 40 section).  The entries equal those of the products up to the order of summation."""
 
     def __init__(self, sec, rho):
         self.sec = sec
