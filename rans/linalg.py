@@ -320,13 +320,16 @@ class LaggedSparseLU(LaggedFactor):
     needed more than 3); GMRES with the same held factorisation makes 82 for the same solves,
     ~10 iterations each, and the fields agree to 3·10⁻¹² of their maxima.  The matrix is
     factorised afresh after a solve that needed more than ``refactor_after`` preconditioner
-    solves.  ``krylov_iterations`` counts the GMRES iterations."""
+    solves (default 12 with GMRES, 3 sweeps of the plain refinement with ``krylov = 0``).
+    ``krylov_iterations`` counts the GMRES iterations."""
 
-    def __init__(self, segments, rtol=1e-10, floor=1e-3, max_sweeps=6, refactor_after=12, permc_spec="COLAMD",
+    def __init__(self, segments, rtol=1e-10, floor=1e-3, max_sweeps=6, refactor_after=None, permc_spec="COLAMD",
                  krylov=30):
-        super().__init__(None, rtol=rtol, floor=floor, max_sweeps=max_sweeps, refactor_after=refactor_after)
         if krylov < 0:
             raise ValueError("LaggedSparseLU needs krylov >= 0")
+        if refactor_after is None:  # preconditioner solves per GMRES solve; sweeps of the plain refinement
+            refactor_after = 12 if krylov else 3
+        super().__init__(None, rtol=rtol, floor=floor, max_sweeps=max_sweeps, refactor_after=refactor_after)
         self._bounds = np.cumsum([0] + [int(m) for m in segments])
         self.permc_spec = permc_spec
         self.krylov = int(krylov)
