@@ -68,34 +68,64 @@ class BlockStructure:
         self.u_in = N[inw]
         self.diag_index = (np.arange(self.n) // nt * nt + np.arange(self.n) % nt) * nt + np.arange(self.n) % nt
 
-    def _dominant(self, diag, a_PN, a_NP):
-        return _row_dominant(diag, a_PN, a_NP, self._P, self._N)
-
     def factor(self, diag, a_PN, a_NP):
         """LU of the matrix with diagonal ``diag`` and face coefficients; has ``.solve(b)``.
 
         Block LU does not pivot between blocks: a matrix that is not diagonally dominant
         (e.g. central convection at cell Péclet numbers above 2) goes to SuperLU instead."""
-        if not self.ok or not self._dominant(diag, a_PN, a_NP):
+        if not self.ok:
+            return splu(self._sparse_matrix(diag, a_PN, a_NP))
+        diag = np.ascontiguousarray(diag, dtype=np.float64)
+        a_PN = np.ascontiguousarray(a_PN, dtype=np.float64)
+        a_NP = np.ascontiguousarray(a_NP, dtype=np.float64)
+        if not _row_dominant(diag, a_PN, a_NP, self._P, self._N):
             return splu(self._sparse_matrix(diag, a_PN, a_NP))
         nr, nt = self.nr, self.nt
-        D = np.zeros(nr * nt * nt)
-        # np.add.at: entries of faces that share a cell pair add up, as in the sparse assembly
-        np.add.at(D, self.diag_index, diag)
-        np.add.at(D, self.d_PN, a_PN[self.f_same])
-        np.add.at(D, self.d_NP, a_NP[self.f_same])
-        U = np.zeros(self.n)
-        L = np.zeros(self.n)
-        np.add.at(U, self.u_out, a_PN[self.f_out])
-        np.add.at(L, self.l_out, a_NP[self.f_out])
-        np.add.at(L, self.l_in, a_PN[self.f_in])
-        np.add.at(U, self.u_in, a_NP[self.f_in])
+        D, L, U = _blocks(nr, nt, diag, a_PN, a_NP, self.diag_index, self.d_PN, self.d_NP, self.f_same, self.u_out,
+                          self.l_out, self.f_out, self.l_in, self.u_in, self.f_in)
         return BlockLU(D.reshape(nr, nt, nt), L.reshape(nr, nt), U.reshape(nr, nt))
 
 
+@njit(cache=True)
+def _blocks(nr, nt, diag, a_PN, a_NP, diag_index, d_PN, d_NP, f_same, u_out, l_out, f_out, l_in, u_in, f_in):
+    """The blocks of :meth:`BlockStructure.factor` (flat): each entry summed in the order of
+    ``np.add.at`` over the same index lists (entries of faces that share a cell pair add up, as
+    in the sparse assembly)."""
+    n = nr * nt
+    D = np.zeros(n * nt)
+    for i in range(diag_index.size):
+        D[diag_index[i]] += diag[i]
+    for i in range(d_PN.size):
+        D[d_PN[i]] += a_PN[f_same[i]]
+    for i in range(d_NP.size):
+        D[d_NP[i]] += a_NP[f_same[i]]
+    U = np.zeros(n)
+    L = np.zeros(n)
+    for i in range(u_out.size):
+        U[u_out[i]] += a_PN[f_out[i]]
+    for i in range(l_out.size):
+        L[l_out[i]] += a_NP[f_out[i]]
+    for i in range(l_in.size):
+        L[l_in[i]] += a_PN[f_in[i]]
+    for i in range(u_in.size):
+        U[u_in[i]] += a_NP[f_in[i]]
+    return D, L, U
+
+
+@njit(cache=True)
 def _row_dominant(diag, a_PN, a_NP, P, N):
-    off = np.bincount(P, np.abs(a_PN), minlength=diag.size) + np.bincount(N, np.abs(a_NP), minlength=diag.size)
-    return bool(np.all(np.abs(diag) >= off * (1.0 - 1e-12)))
+    """Whether |diag| >= (the row's sum of |off-diagonal| entries)(1 - 1e-12) in every row (the
+    sums over P and over N taken apart and then added, as two ``np.bincount`` would)."""
+    n = diag.size
+    a = np.zeros(n)
+    b = np.zeros(n)
+    for f in range(P.size):
+        a[P[f]] += abs(a_PN[f])
+        b[N[f]] += abs(a_NP[f])
+    for i in range(n):
+        if not abs(diag[i]) >= (a[i] + b[i]) * (1.0 - 1e-12):
+            return False
+    return True
 
 
 class BlockLU:

@@ -33,6 +33,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
@@ -325,11 +326,8 @@ class _StationSolver:
 
     # -------------------------------------------------------------------- checks
     def check(self, name, values, positive=False):
-        bad = ~np.isfinite(values)
-        if positive:
-            bad |= values <= 0.0
-        if bad.any():
-            c = int(np.flatnonzero(bad)[0])
+        c = _first_bad(np.ascontiguousarray(values, dtype=np.float64), positive)
+        if c >= 0:
             sec = self.sec
             j, k = divmod(c, sec.nt)
             th = math.degrees(math.atan2(sec.cy[c], sec.cz[c])) % 360.0
@@ -364,29 +362,21 @@ class _StationSolver:
     def _k_eps_sweep(self, k_it, e_it, mut, Pk, eps_sink, Sk, Se, kref, eref, flux, ax, hist, c0, A, wall, yP, src,
                      relax_turb):
         sec, rho, mu = self.sec, self.rho, self.mu
-        # k equation
-        gk = sec.interp(mu + mut / ke.SIGMA_K)
-        dk, kPN, kNP = sec.transport(flux, gk, "upwind")
-        dk = dk + hist.get("c0_k", c0) * ax + rho * A * eps_sink / k_it + A * np.maximum(-Sk, 0.0) / kref
-        bk = ax * hist["k"] + A * (Pk + np.maximum(Sk, 0.0))
-        if relax_turb < 1.0:  # implicit (Patankar) under-relaxation
-            bk += (1.0 - relax_turb) / relax_turb * dk * k_it
-            dk = dk / relax_turb
+        # k equation (assembled in _k_equation: the transport coefficients of mu + mu_t/sigma_k,
+        # upwind, and the sources; the arithmetic of the array form, entry by entry)
+        c0k = hist.get("c0_k", c0)
+        dk, bk, kPN, kNP = _k_equation(sec.P, sec.N, sec.S, sec.delta, sec.w, sec._om, flux, mu, mut, ke.SIGMA_K,
+                                       _cell_array(c0k, A), ax, rho, A, eps_sink, k_it, Sk, kref, hist["k"], Pk,
+                                       relax_turb)
         k_new = self._factor["k"](dk, kPN, kNP).solve(bk)
         self.check("k", k_new, positive=True)
         low_k = k_new < self.k_floor
-        # epsilon equation (fixed value in the wall cells)
-        ge = sec.interp(mu + mut / ke.SIGMA_EPS)
-        de, ePN, eNP = sec.transport(flux, ge, "upwind")
-        de = de + hist.get("c0_eps", c0) * ax + ke.C_EPS2 * rho * A * e_it / k_it + A * np.maximum(-Se, 0.0) / eref
-        be = ax * hist["eps"] + A * (ke.C_EPS1 * e_it / k_it * Pk + np.maximum(Se, 0.0))
+        # epsilon equation (fixed value in the wall cells), assembled in _eps_equation
         c3 = src["c_eps3"]
-        if c3 is not None:  # S_eps = C_eps3 (eps/k) S_k with the iterate's eps/k (Sources)
-            de = de + c3 * A * np.maximum(-Sk, 0.0) / kref
-            be = be + c3 * A * e_it / k_it * np.maximum(Sk, 0.0)
-        if relax_turb < 1.0:
-            be += (1.0 - relax_turb) / relax_turb * de * e_it
-            de = de / relax_turb
+        de, be, ePN, eNP = _eps_equation(sec.P, sec.N, sec.S, sec.delta, sec.w, sec._om, flux, mu, mut, ke.SIGMA_EPS,
+                                         _cell_array(hist.get("c0_eps", c0), A), ax, rho, A, e_it, k_it, Se, eref,
+                                         hist["eps"], Pk, Sk, kref, ke.C_EPS1, ke.C_EPS2,
+                                         math.nan if c3 is None else float(c3), relax_turb)
         big = 1e12 * de[wall]
         de[wall] += big
         be[wall] += big * ke.wall_epsilon(k_new[wall], yP)
@@ -613,6 +603,94 @@ class _StationSolver:
         g = -matvec(sec.Dn, p) + fn
         flux = rho * sec.S * (sec.nz * sec.interp(uz) + sec.ny * sec.interp(uy) + cs.interpolated(g, d))
         return uz, uy, p, flux
+
+
+@njit(cache=True)
+def _first_bad(values, positive):
+    """The first entry that is not finite (or, with ``positive``, not > 0); -1 if none."""
+    for i in range(values.size):
+        v = values[i]
+        if not np.isfinite(v) or (positive and not v > 0.0):
+            return i
+    return -1
+
+
+def _cell_array(c, like):
+    """``c`` (a scalar or a cell array) as a cell array."""
+    return np.full(like.size, float(c)) if np.ndim(c) == 0 else np.ascontiguousarray(c, dtype=np.float64)
+
+
+@njit(cache=True)
+def _upwind_transport(P, N, S, delta, w, om, flux, mu, mut, sigma, n):
+    """Section.transport(flux, Section.interp(mu + mut / sigma), "upwind"), with the same
+    arithmetic per entry: (diagonal, a_PN, a_NP)."""
+    gc = np.empty(n)
+    for i in range(n):
+        gc[i] = mu + mut[i] / sigma
+    a = np.zeros(n)
+    b = np.zeros(n)
+    nf = P.size
+    aPN = np.empty(nf)
+    aNP = np.empty(nf)
+    for f in range(nf):
+        g = om[f] * gc[P[f]] + w[f] * gc[N[f]]
+        D = g * S[f] / delta[f]
+        F = flux[f]
+        cP = D + max(-F, 0.0)
+        cN = D + max(F, 0.0)
+        a[P[f]] += cP
+        b[N[f]] += cN
+        aPN[f] = -cP
+        aNP[f] = -cN
+    for i in range(n):
+        a[i] += b[i]
+    return a, aPN, aNP
+
+
+@njit(cache=True)
+def _k_equation(P, N, S, delta, w, om, flux, mu, mut, sigma, c0, ax, rho, A, eps_sink, k_it, Sk, kref, hist_k, Pk,
+                relax):
+    """Matrix (diagonal, a_PN, a_NP) and right-hand side of the k equation of an outer
+    iteration (_StationSolver._k_eps_sweep), entry by entry in the order of the array form:
+    diag + c0 ax + rho A eps/k + A max(-S_k, 0)/k_ref, rhs ax k_hist + A (P_k + max(S_k, 0)),
+    then the implicit under-relaxation when ``relax`` < 1."""
+    n = A.size
+    d, aPN, aNP = _upwind_transport(P, N, S, delta, w, om, flux, mu, mut, sigma, n)
+    b = np.empty(n)
+    for i in range(n):
+        d[i] = d[i] + c0[i] * ax[i] + rho * A[i] * eps_sink[i] / k_it[i] + A[i] * max(-Sk[i], 0.0) / kref[i]
+        b[i] = ax[i] * hist_k[i] + A[i] * (Pk[i] + max(Sk[i], 0.0))
+    if relax < 1.0:
+        s = (1.0 - relax) / relax
+        for i in range(n):
+            b[i] += s * d[i] * k_it[i]
+            d[i] = d[i] / relax
+    return d, b, aPN, aNP
+
+
+@njit(cache=True)
+def _eps_equation(P, N, S, delta, w, om, flux, mu, mut, sigma, c0, ax, rho, A, e_it, k_it, Se, eref, hist_e, Pk, Sk,
+                  kref, c1, c2, c3, relax):
+    """As :func:`_k_equation` for epsilon (before its wall values): diag + c0 ax + C2 rho A eps/k +
+    A max(-S_eps, 0)/eps_ref, rhs ax eps_hist + A (C1 (eps/k) P_k + max(S_eps, 0)); with C_eps3
+    (``c3`` not NaN) the particle term C_eps3 (eps/k) S_k, its sink part implicit."""
+    n = A.size
+    d, aPN, aNP = _upwind_transport(P, N, S, delta, w, om, flux, mu, mut, sigma, n)
+    b = np.empty(n)
+    c2rho = c2 * rho
+    for i in range(n):
+        d[i] = d[i] + c0[i] * ax[i] + c2rho * A[i] * e_it[i] / k_it[i] + A[i] * max(-Se[i], 0.0) / eref[i]
+        b[i] = ax[i] * hist_e[i] + A[i] * (c1 * e_it[i] / k_it[i] * Pk[i] + max(Se[i], 0.0))
+    if not math.isnan(c3):
+        for i in range(n):
+            d[i] = d[i] + c3 * A[i] * max(-Sk[i], 0.0) / kref[i]
+            b[i] = b[i] + c3 * A[i] * e_it[i] / k_it[i] * max(Sk[i], 0.0)
+    if relax < 1.0:
+        s = (1.0 - relax) / relax
+        for i in range(n):
+            b[i] += s * d[i] * e_it[i]
+            d[i] = d[i] / relax
+    return d, b, aPN, aNP
 
 
 def _source_slices(sources, i, n):
