@@ -38,7 +38,7 @@ from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
 from .linalg import AndersonMixing, LaggedSparseLU
-from .operators import CoupledCrossFlow, face_sums, matvec
+from .operators import CoupledCrossFlow, matvec
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -557,18 +557,14 @@ class _StationSolver:
         Rz, Ry = sec.reconstruct(g, np.zeros(nwall))
         uz = lu.solve(bz + A * Rz)
         uy = lu.solve(by + A * Ry)
-        offsum = face_sums(sec.P, sec.N, np.abs(aPN), np.abs(aNP), sec.n)
-        red = diag_m - drag_diag - offsum
-        red = np.where(red > 1e-3 * diag_m, red, diag_m)
-        dP = A / red
-        d_f = sec.interp(dP)
-        Uf = (sec.interp(uz - dP * Rz) * sec.nz + sec.interp(uy - dP * Ry) * sec.ny) + d_f * g
-        flux = rho * Uf * sec.S
-        imbalance = matvec(sec.div, flux)
+        # momentum-interpolated face fluxes, their imbalance and the pressure-correction matrix
+        # (_simplec_fluxes, compiled; the arithmetic of the array form per entry)
+        dP, flux, imbalance, coef, diag_p = _simplec_fluxes(
+            sec.P, sec.N, sec.S, sec.delta, sec.w, sec._om, sec.nz, sec.ny, aPN, aNP, diag_m,
+            _cell_array(drag_diag, A), A, uz, uy, Rz, Ry, g, rho, sec.div.indptr, sec.div.indices, sec.div.data,
+            sec.fsum.indptr, sec.fsum.indices, sec.fsum.data)
         if axial_part is not None:
             imbalance = imbalance + axial_part
-        coef = rho * d_f * sec.S / sec.delta
-        diag_p = matvec(sec.fsum, coef)
         diag_p[sec.wall[0]] += diag_p.max() * 1e3  # pin the level of p' (pure Neumann problem)
         pc = self._factor["pressure"](diag_p, -coef, -coef).solve(-imbalance)
         flux = flux + coef * (pc[sec.P] - pc[sec.N])
@@ -603,6 +599,53 @@ class _StationSolver:
         g = -matvec(sec.Dn, p) + fn
         flux = rho * sec.S * (sec.nz * sec.interp(uz) + sec.ny * sec.interp(uy) + cs.interpolated(g, d))
         return uz, uy, p, flux
+
+
+@njit(cache=True)
+def _simplec_fluxes(P, N, S, delta, w, om, nz, ny, aPN, aNP, diag_m, drag_diag, A, uz, uy, Rz, Ry, g, rho,
+                    div_ptr, div_idx, div_val, fsum_ptr, fsum_idx, fsum_val):
+    """The SIMPLEC step's momentum interpolation (_StationSolver._cross_flow_simplec): the
+    weights d = A / (a_P - drag - sum |a_nb|) (a_P where that is not above 1e-3 a_P), the face
+    mass fluxes rho S [interp(u - d R) . n + interp(d) g], their cell imbalance (sec.div) and
+    the pressure-correction coefficients rho interp(d) S / delta with their face sums
+    (sec.fsum): (d, flux, imbalance, coef, diag_p), each entry with the array form's arithmetic."""
+    n = A.size
+    nf = P.size
+    a = np.zeros(n)
+    b = np.zeros(n)
+    for f in range(nf):
+        a[P[f]] += abs(aPN[f])
+        b[N[f]] += abs(aNP[f])
+    dP = np.empty(n)
+    vz = np.empty(n)
+    vy = np.empty(n)
+    for i in range(n):
+        red = diag_m[i] - drag_diag[i] - (a[i] + b[i])
+        if not red > 1e-3 * diag_m[i]:
+            red = diag_m[i]
+        dP[i] = A[i] / red
+        vz[i] = uz[i] - dP[i] * Rz[i]
+        vy[i] = uy[i] - dP[i] * Ry[i]
+    flux = np.empty(nf)
+    coef = np.empty(nf)
+    for f in range(nf):
+        p, q = P[f], N[f]
+        d_f = om[f] * dP[p] + w[f] * dP[q]
+        Uf = ((om[f] * vz[p] + w[f] * vz[q]) * nz[f] + (om[f] * vy[p] + w[f] * vy[q]) * ny[f]) + d_f * g[f]
+        flux[f] = rho * Uf * S[f]
+        coef[f] = rho * d_f * S[f] / delta[f]
+    imbalance = np.empty(n)
+    diag_p = np.empty(n)
+    for i in range(n):
+        s = 0.0
+        for jj in range(div_ptr[i], div_ptr[i + 1]):
+            s += div_val[jj] * flux[div_idx[jj]]
+        imbalance[i] = s
+        s = 0.0
+        for jj in range(fsum_ptr[i], fsum_ptr[i + 1]):
+            s += fsum_val[jj] * coef[fsum_idx[jj]]
+        diag_p[i] = s
+    return dP, flux, imbalance, coef, diag_p
 
 
 @njit(cache=True)
