@@ -455,8 +455,7 @@ class _StationSolver:
         # axial velocity, mass flow fixed through the mean pressure gradient G = -dp/dx
         b = (ax * hist["ux"] + src["mx"] * A + explicit_drag(0) + relax_u * st.ux
              + sec.radial_gradient_correction(st.ux, mu_f))
-        u1 = lu.solve(b)
-        u2 = lu.solve(A.copy())
+        u1, u2 = _solve_pair(lu, b, A.copy())
         mdot_target = self.Ub * self.area_total
         G = (mdot_target - A @ u1) / (A @ u2)
         ux_new = u1 + G * u2
@@ -555,8 +554,7 @@ class _StationSolver:
         nwall = sec.wall.size
         g = -sec.normal_difference(st.p) + fn
         Rz, Ry = sec.reconstruct(g, np.zeros(nwall))
-        uz = lu.solve(bz + A * Rz)
-        uy = lu.solve(by + A * Ry)
+        uz, uy = _solve_pair(lu, bz + A * Rz, by + A * Ry)
         # momentum-interpolated face fluxes, their imbalance and the pressure-correction matrix
         # (_simplec_fluxes, compiled; the arithmetic of the array form per entry)
         dP, flux, imbalance, coef, diag_p = _simplec_fluxes(
@@ -656,6 +654,13 @@ def _first_bad(values, positive):
         if not np.isfinite(v) or (positive and not v > 0.0):
             return i
     return -1
+
+
+def _solve_pair(lu, b1, b2):
+    """(lu.solve(b1), lu.solve(b2)), in one pass where ``lu`` can (LaggedFactor.solve2)."""
+    if hasattr(lu, "solve2"):
+        return lu.solve2(b1, b2)
+    return lu.solve(b1), lu.solve(b2)
 
 
 def _cell_array(c, like):

@@ -161,6 +161,34 @@ def test_lagged_factor_factorises_the_next_matrix_after_a_slow_refinement():
     assert lag.factorisations == 2 and lag._fresh
 
 
+def test_paired_lagged_solves_equal_two_single_solves_bit_for_bit():
+    # solve2 refines two right-hand sides in one pass over the factorisation; each result, and
+    # what the factorisation does next, must be that of solve(b1) then solve(b2), whether both
+    # refine (R), the first fails (F, and the second is then solved directly, D) or only the second
+    sec, rng, diag, aPN, aNP = _section_system(seed=7)
+    seen = set()
+    for spread in (1e-4, 1.0, 3e-4, 5e-4):  # matrices close to the held one, far from it, in between
+        pair, single = (sec.lagged_factor(rtol=1e-10, floor=1e-8, max_sweeps=4) for _ in range(2))
+        for lag in (pair, single):
+            lag.factor(diag, aPN, aNP)
+        for it in range(8):
+            d = diag * (1.0 + spread * rng.uniform(-1.0, 1.0, sec.n)) if spread < 1.0 else diag * rng.uniform(
+                0.05, 20.0, sec.n)
+            b1, b2 = rng.normal(size=sec.n), rng.normal(size=sec.n)
+            x1, x2 = pair.factor(d, aPN, aNP).solve2(b1, b2)
+            single.factor(d, aPN, aNP)
+            outcome = ""
+            for b, x in ((b1, x1), (b2, x2)):
+                refined, made = single.refined, single.factorisations
+                y = single.solve(b)
+                outcome += "R" if single.refined > refined else "F" if single.factorisations > made else "D"
+                assert np.array_equal(x, y), (spread, it, outcome)
+            seen.add(outcome)
+            for attr in ("factorisations", "solves", "refined", "sweeps", "_last_sweeps", "_skip", "_backoff"):
+                assert getattr(pair, attr) == getattr(single, attr), (spread, it, attr)
+    assert {"RR", "FD", "RF"} <= seen, seen
+
+
 @pytest.mark.parametrize("krylov", [0, 30])
 def test_lagged_sparse_lu_with_gmres_keeps_a_factorisation_that_the_refinement_must_replace(krylov):
     # a held factorisation of A0 for A1 = A0 + a strong rank-3 change: LU0^-1 A1 has three
