@@ -217,9 +217,10 @@ class Section:
         first order) do not use it: an explicit source of either sign would spoil the
         positivity of their M-matrix solves.
         """
-        f = self.corrected_faces
-        q = gamma_f[f] * self.S[f] * matvec(self._corr, phi)
-        return matvec(self._corr_div, q)
+        c, d = self._corr, self._corr_div
+        return _radial_correction(c.indptr, c.indices, c.data, d.indptr, d.indices, d.data, self.S,
+                                  np.ascontiguousarray(gamma_f, dtype=np.float64),
+                                  np.ascontiguousarray(phi, dtype=np.float64))
 
     # ------------------------------------------------------------------ face/cell maps
     def interp(self, phi):
@@ -287,6 +288,28 @@ def _transport(P, N, S, delta, w, om, flux, gamma_f, n, scheme):
     for i in range(n):
         a[i] += b[i]
     return a, aPN, aNP
+
+
+@njit(cache=True)
+def _radial_correction(c_ptr, c_idx, c_val, d_ptr, d_idx, d_val, S, gamma_f, phi):
+    """:meth:`Section.radial_gradient_correction` compiled: q_f = gamma_f S_f (corr phi)_f over the
+    corrected faces (the first ones), then its cell sums (the two CSR products of the array
+    form, each row in stored order)."""
+    nfc = c_ptr.size - 1
+    q = np.empty(nfc)
+    for f in range(nfc):
+        s = 0.0
+        for jj in range(c_ptr[f], c_ptr[f + 1]):
+            s += c_val[jj] * phi[c_idx[jj]]
+        q[f] = gamma_f[f] * S[f] * s
+    n = d_ptr.size - 1
+    out = np.empty(n)
+    for i in range(n):
+        s = 0.0
+        for jj in range(d_ptr[i], d_ptr[i + 1]):
+            s += d_val[jj] * q[d_idx[jj]]
+        out[i] = s
+    return out
 
 
 @njit(cache=True)

@@ -38,7 +38,7 @@ from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
 from .linalg import AndersonMixing, LaggedSparseLU
-from .operators import CoupledCrossFlow, matvec
+from .operators import CoupledCrossFlow, _normal_difference, _reconstruct, matvec
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -488,12 +488,11 @@ class _StationSolver:
             k_new, eps_new = st.k, st.eps
             tau_w = np.abs(cwL * ux_new[wall] - bwL * ux_new[inner]) / sec.wall_arc
         else:
-            dux = sec.gradient(ux_new, 0.0)
-            duz = sec.gradient(uz, 0.0)
-            duy = sec.gradient(uy, 0.0)
-            dudx = (c0 * ux_new - hist["ux"]) / dx
-            G2 = (dux[0] ** 2 + dux[1] ** 2 + 2.0 * duz[0] ** 2 + 2.0 * duy[1] ** 2
-                  + (duz[1] + duy[0]) ** 2 + 2.0 * dudx**2)
+            # G^2 = 2 S_ij S_ij of the cell gradients (Section.gradient, no-slip wall values) and
+            # the axial derivative (c0 u_x - hist)/dx (_strain_squared, compiled)
+            G2 = _strain_squared(sec.P, sec.N, sec.S, sec.nz, sec.ny, sec.delta, sec.wall, sec.wall_chord,
+                                 sec.wall_nz, sec.wall_ny, sec.wall_distance, sec.Tinv, ux_new, uz, uy, hist["ux"],
+                                 float(c0), float(dx))
             ut = -uz[wall] * sec.wall_ny + uy[wall] * sec.wall_nz
             Ut = np.sqrt(ux_new[wall] ** 2 + ut**2)
             tau_w = cw * Ut
@@ -534,8 +533,8 @@ class _StationSolver:
 
         # ---------------- change and update
         ref_u = self.Ub
-        ch_u = max(np.abs(ux_new - st.ux).max(), np.abs(uy - st.uy).max(), np.abs(uz - st.uz).max()) / ref_u
-        ch_t = max(np.abs(k_new / st.k - 1.0).max(), np.abs(eps_new / st.eps - 1.0).max())
+        ch_u, ch_t = _changes(ux_new, st.ux, uy, st.uy, uz, st.uz, k_new, st.k, eps_new, st.eps)
+        ch_u = ch_u / ref_u
         self.last_change = (float(ch_u), float(ch_t))
         ch = max(ch_u, ch_t)
         st.ux, st.uy, st.uz, st.p, st.k, st.eps, st.flux, st.G = ux_new, uy, uz, p, k_new, eps_new, flux, G
@@ -644,6 +643,41 @@ def _simplec_fluxes(P, N, S, delta, w, om, nz, ny, aPN, aNP, diag_m, drag_diag, 
             s += fsum_val[jj] * coef[fsum_idx[jj]]
         diag_p[i] = s
     return dP, flux, imbalance, coef, diag_p
+
+
+@njit(cache=True)
+def _strain_squared(P, N, S, nz, ny, delta, wall, wall_chord, wall_nz, wall_ny, wall_distance, Tinv, ux, uz, uy,
+                    hist_ux, c0, dx):
+    """G^2 = (du_x/dz)^2 + (du_x/dy)^2 + 2 (du_z/dz)^2 + 2 (du_y/dy)^2 + (du_z/dy + du_y/dz)^2
+    + 2 (du_x/dx)^2, the gradients as Section.gradient(phi, 0.0) gives them, du_x/dx =
+    (c0 u_x - hist)/dx; each entry with the array form's arithmetic."""
+    n = ux.size
+    gw = np.empty(wall.size)
+    grads = []
+    for phi in (ux, uz, uy):
+        for m in range(wall.size):
+            gw[m] = (0.0 - phi[wall[m]]) / wall_distance
+        grads.append(_reconstruct(P, N, S, nz, ny, _normal_difference(P, N, delta, phi), n, wall, wall_chord, gw,
+                                  wall_nz, wall_ny, Tinv, True))
+    (ax_z, ax_y), (zz, zy), (yz, yy) = grads[0], grads[1], grads[2]
+    G2 = np.empty(n)
+    for i in range(n):
+        dudx = (c0 * ux[i] - hist_ux[i]) / dx
+        e = zy[i] + yz[i]
+        G2[i] = (ax_z[i] * ax_z[i] + ax_y[i] * ax_y[i] + 2.0 * (zz[i] * zz[i]) + 2.0 * (yy[i] * yy[i])
+                 + e * e + 2.0 * (dudx * dudx))
+    return G2
+
+
+@njit(cache=True)
+def _changes(ux, ux0, uy, uy0, uz, uz0, k, k0, eps, eps0):
+    """(largest |velocity change|, largest |k/k0 - 1| or |eps/eps0 - 1|) of an outer iteration."""
+    cu = 0.0
+    ct = 0.0
+    for i in range(ux.size):
+        cu = max(cu, abs(ux[i] - ux0[i]), abs(uy[i] - uy0[i]), abs(uz[i] - uz0[i]))
+        ct = max(ct, abs(k[i] / k0[i] - 1.0), abs(eps[i] / eps0[i] - 1.0))
+    return cu, ct
 
 
 @njit(cache=True)
@@ -1220,16 +1254,33 @@ def _cycling(changes, tol):
     n = len(changes)
     if n < 12:
         return False
-    c = np.asarray(changes[-min(n, (CYCLE_PERIODS + 1) * CYCLE_PERIOD_MAX):])
-    if not (np.all(np.isfinite(c[-8:])) and c[-8:].min() > tol):
-        return False
-    for p in range(2, CYCLE_PERIOD_MAX + 1):
-        w = max(CYCLE_PERIODS * p, 8)
-        if w + p > c.size:
+    c = np.asarray(changes[-min(n, (CYCLE_PERIODS + 1) * CYCLE_PERIOD_MAX):], dtype=np.float64)
+    return _cycling_kernel(c, float(tol), CYCLE_PERIODS, CYCLE_PERIOD_MAX, CYCLE_MATCH)
+
+
+@njit(cache=True)
+def _cycling_kernel(c, tol, periods, period_max, match):
+    """:func:`_cycling` on the last changes ``c`` (compiled)."""
+    m = c.size
+    for i in range(m - 8, m):
+        if not (np.isfinite(c[i]) and c[i] > tol):
             return False
-        now, before = c[-w:], c[-w - p:-p]
-        if np.all(np.abs(now - before) <= CYCLE_MATCH * now):
-            return bool(now.max() >= 2.0 * now.min())
+    for p in range(2, period_max + 1):
+        w = max(periods * p, 8)
+        if w + p > m:
+            return False
+        ok = True
+        for i in range(m - w, m):
+            if not abs(c[i] - c[i - p]) <= match * c[i]:
+                ok = False
+                break
+        if ok:
+            lo = c[m - w]
+            hi = c[m - w]
+            for i in range(m - w, m):
+                lo = min(lo, c[i])
+                hi = max(hi, c[i])
+            return hi >= 2.0 * lo
     return False
 
 
