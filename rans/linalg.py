@@ -205,6 +205,21 @@ def _solve(inv_t, L, U, b, x):
 
 
 @njit(cache=True)
+def _block_products(inv_t, j, y1, y2, acc1, acc2):
+    """acc = D'_j⁻¹ y for two vectors at once (the order of :func:`_solve`'s sums)."""
+    nt = y1.size
+    acc1[:] = 0.0
+    acc2[:] = 0.0
+    for c in range(nt):
+        yc1 = y1[c]
+        yc2 = y2[c]
+        for a in range(nt):
+            m = inv_t[j, c, a]
+            acc1[a] += m * yc1
+            acc2[a] += m * yc2
+
+
+@njit(cache=True)
 def _solve2(inv_t, L, U, b1, b2, x1, x2):
     """:func:`_solve` for two right-hand sides in one pass over the factorisation (each
     solution with the arithmetic of :func:`_solve`)."""
@@ -217,15 +232,7 @@ def _solve2(inv_t, L, U, b1, b2, x1, x2):
         for a in range(nt):
             y1[a] = b1[j * nt + a] - (L[j, a] * x1[(j - 1) * nt + a] if j > 0 else 0.0)
             y2[a] = b2[j * nt + a] - (L[j, a] * x2[(j - 1) * nt + a] if j > 0 else 0.0)
-        acc1[:] = 0.0
-        acc2[:] = 0.0
-        for c in range(nt):
-            yc1 = y1[c]
-            yc2 = y2[c]
-            for a in range(nt):
-                m = inv_t[j, c, a]
-                acc1[a] += m * yc1
-                acc2[a] += m * yc2
+        _block_products(inv_t, j, y1, y2, acc1, acc2)
         for a in range(nt):
             x1[j * nt + a] = acc1[a]
             x2[j * nt + a] = acc2[a]
@@ -233,15 +240,7 @@ def _solve2(inv_t, L, U, b1, b2, x1, x2):
         for c in range(nt):
             y1[c] = U[j, c] * x1[(j + 1) * nt + c]
             y2[c] = U[j, c] * x2[(j + 1) * nt + c]
-        acc1[:] = 0.0
-        acc2[:] = 0.0
-        for c in range(nt):
-            yc1 = y1[c]
-            yc2 = y2[c]
-            for a in range(nt):
-                m = inv_t[j, c, a]
-                acc1[a] += m * yc1
-                acc2[a] += m * yc2
+        _block_products(inv_t, j, y1, y2, acc1, acc2)
         for a in range(nt):
             x1[j * nt + a] -= acc1[a]
             x2[j * nt + a] -= acc2[a]

@@ -38,7 +38,7 @@ from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
 from .linalg import AndersonMixing, LaggedSparseLU
-from .operators import CoupledCrossFlow, _normal_difference, _reconstruct, matvec
+from .operators import CoupledCrossFlow, _interp, _normal_difference, _reconstruct, _transport, matvec
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -709,24 +709,16 @@ def _upwind_transport(P, N, S, delta, w, om, flux, mu, mut, sigma, n):
     gc = np.empty(n)
     for i in range(n):
         gc[i] = mu + mut[i] / sigma
-    a = np.zeros(n)
-    b = np.zeros(n)
-    nf = P.size
-    aPN = np.empty(nf)
-    aNP = np.empty(nf)
-    for f in range(nf):
-        g = om[f] * gc[P[f]] + w[f] * gc[N[f]]
-        D = g * S[f] / delta[f]
-        F = flux[f]
-        cP = D + max(-F, 0.0)
-        cN = D + max(F, 0.0)
-        a[P[f]] += cP
-        b[N[f]] += cN
-        aPN[f] = -cP
-        aNP[f] = -cN
-    for i in range(n):
-        a[i] += b[i]
-    return a, aPN, aNP
+    return _transport(P, N, S, delta, w, om, flux, _interp(P, N, om, w, gc), n, 0)
+
+
+@njit(cache=True)
+def _relax_implicitly(d, b, x, relax):
+    """Patankar's implicit under-relaxation of the rows (d, b) about the iterate x."""
+    s = (1.0 - relax) / relax
+    for i in range(d.size):
+        b[i] += s * d[i] * x[i]
+        d[i] = d[i] / relax
 
 
 @njit(cache=True)
@@ -743,10 +735,7 @@ def _k_equation(P, N, S, delta, w, om, flux, mu, mut, sigma, c0, ax, rho, A, eps
         d[i] = d[i] + c0[i] * ax[i] + rho * A[i] * eps_sink[i] / k_it[i] + A[i] * max(-Sk[i], 0.0) / kref[i]
         b[i] = ax[i] * hist_k[i] + A[i] * (Pk[i] + max(Sk[i], 0.0))
     if relax < 1.0:
-        s = (1.0 - relax) / relax
-        for i in range(n):
-            b[i] += s * d[i] * k_it[i]
-            d[i] = d[i] / relax
+        _relax_implicitly(d, b, k_it, relax)
     return d, b, aPN, aNP
 
 
@@ -768,10 +757,7 @@ def _eps_equation(P, N, S, delta, w, om, flux, mu, mut, sigma, c0, ax, rho, A, e
             d[i] = d[i] + c3 * A[i] * max(-Sk[i], 0.0) / kref[i]
             b[i] = b[i] + c3 * A[i] * e_it[i] / k_it[i] * max(Sk[i], 0.0)
     if relax < 1.0:
-        s = (1.0 - relax) / relax
-        for i in range(n):
-            b[i] += s * d[i] * e_it[i]
-            d[i] = d[i] / relax
+        _relax_implicitly(d, b, e_it, relax)
     return d, b, aPN, aNP
 
 
