@@ -302,13 +302,8 @@ def _radial_correction(c_ptr, c_idx, c_val, d_ptr, d_idx, d_val, S, gamma_f, phi
         for jj in range(c_ptr[f], c_ptr[f + 1]):
             s += c_val[jj] * phi[c_idx[jj]]
         q[f] = gamma_f[f] * S[f] * s
-    n = d_ptr.size - 1
-    out = np.empty(n)
-    for i in range(n):
-        s = 0.0
-        for jj in range(d_ptr[i], d_ptr[i + 1]):
-            s += d_val[jj] * q[d_idx[jj]]
-        out[i] = s
+    out = np.empty(d_ptr.size - 1)
+    _csr_matvec(d_ptr, d_idx, d_val, q, out)
     return out
 
 

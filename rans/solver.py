@@ -38,7 +38,7 @@ from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
 from .linalg import AndersonMixing, LaggedSparseLU
-from .operators import CoupledCrossFlow, _interp, _normal_difference, _reconstruct, _transport, matvec
+from .operators import CoupledCrossFlow, _csr_matvec, _interp, _normal_difference, _reconstruct, _transport, matvec
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -633,15 +633,8 @@ def _simplec_fluxes(P, N, S, delta, w, om, nz, ny, aPN, aNP, diag_m, drag_diag, 
         coef[f] = rho * d_f * S[f] / delta[f]
     imbalance = np.empty(n)
     diag_p = np.empty(n)
-    for i in range(n):
-        s = 0.0
-        for jj in range(div_ptr[i], div_ptr[i + 1]):
-            s += div_val[jj] * flux[div_idx[jj]]
-        imbalance[i] = s
-        s = 0.0
-        for jj in range(fsum_ptr[i], fsum_ptr[i + 1]):
-            s += fsum_val[jj] * coef[fsum_idx[jj]]
-        diag_p[i] = s
+    _csr_matvec(div_ptr, div_idx, div_val, flux, imbalance)
+    _csr_matvec(fsum_ptr, fsum_idx, fsum_val, coef, diag_p)
     return dP, flux, imbalance, coef, diag_p
 
 
