@@ -544,26 +544,39 @@ def _refine(inv_t, L, U, diag, a_PN, a_NP, P, N, b, x, floor, rtol, max_sweeps):
     _solve(inv_t, L, U, b, x)
     last = np.inf
     slowest = 1e-2  # the slowest contraction so far, at least 1e-2
-    sweep = 0
     for sweep in range(1, max_sweeps + 1):
         _residual(diag, a_PN, a_NP, P, N, x, b, r)
         _solve(inv_t, L, U, r, dx)
-        for i in range(n):
-            x[i] += dx[i]
-        step = _relative_step(dx, x, floor)
-        if not step <= 1e300:
-            break
-        if step <= rtol * 1e-2:  # so small a step leaves < rtol even at slow contraction
-            return sweep
-        if sweep > 1:
-            rho = step / last  # contraction per sweep
-            slowest = max(slowest, rho)
-            if slowest < 1.0 and step * slowest / (1.0 - slowest) <= rtol:
-                return sweep
-            if rho >= 1.0 or step * rho ** float(max_sweeps - sweep + 1) > rtol:
-                break  # will not get there within max_sweeps
-        last = step
-    return -sweep
+        verdict, last, slowest = _sweep(x, dx, last, slowest, sweep, floor, rtol, max_sweeps)
+        if verdict != 0:
+            return verdict
+    return -max_sweeps
+
+
+@njit(cache=True)
+def _sweep(x, dx, last, slowest, sweep, floor, rtol, max_sweeps):
+    """x += dx, and the refinement's verdict after sweep ``sweep`` (one rule for :func:`_refine`
+    and :func:`_refine2`): (verdict, this step, the slowest contraction so far); verdict
+    ``sweep`` when the error left is below ``rtol`` (a step below rtol/100, or the step times
+    slowest/(1 − slowest)), ``-sweep`` when it will not get there within ``max_sweeps`` (the
+    step not finite, not contracting, or too slow), 0 to go on."""
+    for i in range(x.size):
+        x[i] += dx[i]
+    step = _relative_step(dx, x, floor)
+    if not step <= 1e300:
+        return -sweep, step, slowest
+    if step <= rtol * 1e-2:  # so small a step leaves < rtol even at slow contraction
+        return sweep, step, slowest
+    if sweep > 1:
+        rho = step / last  # contraction per sweep
+        slowest = max(slowest, rho)
+        if slowest < 1.0 and step * slowest / (1.0 - slowest) <= rtol:
+            return sweep, step, slowest
+        if rho >= 1.0 or step * rho ** float(max_sweeps - sweep + 1) > rtol:
+            return -sweep, step, slowest  # will not get there within max_sweeps
+    if sweep == max_sweeps:
+        return -sweep, step, slowest
+    return 0, step, slowest
 
 
 @njit(cache=True)
@@ -577,12 +590,9 @@ def _refine2(inv_t, L, U, diag, a_PN, a_NP, P, N, b1, b2, x1, x2, floor, rtol, m
     dx1 = np.empty(n)
     dx2 = np.empty(n)
     _solve2(inv_t, L, U, b1, b2, x1, x2)
-    last1 = np.inf
-    last2 = np.inf
-    slowest1 = 1e-2
-    slowest2 = 1e-2
-    res1 = 0  # 0: still refining; > 0 accepted after that many sweeps; < 0 failed
-    res2 = 0
+    last1 = last2 = np.inf
+    slowest1 = slowest2 = 1e-2
+    res1 = res2 = 0  # 0: still refining; > 0 accepted after that many sweeps; < 0 failed
     for sweep in range(1, max_sweeps + 1):
         if res1 == 0:
             _residual(diag, a_PN, a_NP, P, N, x1, b1, r1)
@@ -594,34 +604,10 @@ def _refine2(inv_t, L, U, diag, a_PN, a_NP, P, N, b1, b2, x1, x2, floor, rtol, m
             _solve(inv_t, L, U, r1, dx1)
         else:
             _solve(inv_t, L, U, r2, dx2)
-        for k in range(2):
-            if (res1 if k == 0 else res2) != 0:
-                continue
-            x = x1 if k == 0 else x2
-            dx = dx1 if k == 0 else dx2
-            last = last1 if k == 0 else last2
-            slowest = slowest1 if k == 0 else slowest2
-            res = 0
-            for i in range(n):
-                x[i] += dx[i]
-            step = _relative_step(dx, x, floor)
-            if not step <= 1e300:
-                res = -sweep
-            elif step <= rtol * 1e-2:
-                res = sweep
-            elif sweep > 1:
-                rho = step / last
-                slowest = max(slowest, rho)
-                if slowest < 1.0 and step * slowest / (1.0 - slowest) <= rtol:
-                    res = sweep
-                elif rho >= 1.0 or step * rho ** float(max_sweeps - sweep + 1) > rtol:
-                    res = -sweep
-            if res == 0 and sweep == max_sweeps:
-                res = -sweep
-            if k == 0:
-                res1, last1, slowest1 = res, step, slowest
-            else:
-                res2, last2, slowest2 = res, step, slowest
+        if res1 == 0:
+            res1, last1, slowest1 = _sweep(x1, dx1, last1, slowest1, sweep, floor, rtol, max_sweeps)
+        if res2 == 0:
+            res2, last2, slowest2 = _sweep(x2, dx2, last2, slowest2, sweep, floor, rtol, max_sweeps)
         if res1 != 0 and res2 != 0:
             break
     return res1, res2

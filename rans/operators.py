@@ -250,6 +250,10 @@ class Section:
         the wall (e.g. 0 for a no-slip velocity component).
         """
         phi = np.ascontiguousarray(phi, dtype=np.float64)
+        if wall_value is not None and np.ndim(wall_value) == 0:
+            return _dirichlet_gradient(self.P, self.N, self.S, self.nz, self.ny, self.delta, self.wall, self.wall_chord,
+                                       self.wall_nz, self.wall_ny, self.wall_distance, self.Tinv, phi,
+                                       float(wall_value))
         g_wall = None
         if wall_value is not None:
             g_wall = (wall_value - phi[self.wall]) / self.wall_distance
@@ -265,29 +269,27 @@ def _transport(P, N, S, delta, w, om, flux, gamma_f, n, scheme):
     coefficients cP, cN of the scheme (0 upwind, 1 central, 2 hybrid); returns (the face sums
     of cP over P and cN over N, -cP, -cN), each entry with the arithmetic of the array form."""
     nf = P.size
-    a = np.zeros(n)
-    b = np.zeros(n)
-    aPN = np.empty(nf)
-    aNP = np.empty(nf)
+    cP = np.empty(nf)  # row P: coefficient on (phi_P - phi_N)
+    cN = np.empty(nf)  # row N: coefficient on (phi_N - phi_P)
     for f in range(nf):
         D = gamma_f[f] * S[f] / delta[f]
         F = flux[f]
         if scheme == 0:
-            cP = D + max(-F, 0.0)
-            cN = D + max(F, 0.0)
+            cP[f] = D + max(-F, 0.0)
+            cN[f] = D + max(F, 0.0)
         else:
-            cP = D - F * w[f]
-            cN = D + F * om[f]
+            cP[f] = D - F * w[f]
+            cN[f] = D + F * om[f]
             if scheme == 2:
-                cP = max(max(-F, cP), 0.0)
-                cN = max(max(F, cN), 0.0)
-        a[P[f]] += cP
-        b[N[f]] += cN
-        aPN[f] = -cP
-        aNP[f] = -cN
-    for i in range(n):
-        a[i] += b[i]
-    return a, aPN, aNP
+                # Spalding's hybrid in Patankar's (1980, §5.2) continuous form: central while it
+                # gives non-negative coefficients, pure upwind convection (no diffusion) beyond.
+                # (Keeping D in the upwind branch would make the coefficients jump by D at the
+                # switch; a face whose Peclet number sits at the switch then flips every outer
+                # iteration, a 2-cycle that keeps stations from converging under strong
+                # particle sources, as in scene b.)
+                cP[f] = max(max(-F, cP[f]), 0.0)
+                cN[f] = max(max(F, cN[f]), 0.0)
+    return face_sums(P, N, cP, cN, n), -cP, -cN
 
 
 @njit(cache=True)
@@ -295,16 +297,24 @@ def _radial_correction(c_ptr, c_idx, c_val, d_ptr, d_idx, d_val, S, gamma_f, phi
     """:meth:`Section.radial_gradient_correction` compiled: q_f = gamma_f S_f (corr phi)_f over the
     corrected faces (the first ones), then its cell sums (the two CSR products of the array
     form, each row in stored order)."""
-    nfc = c_ptr.size - 1
-    q = np.empty(nfc)
-    for f in range(nfc):
-        s = 0.0
-        for jj in range(c_ptr[f], c_ptr[f + 1]):
-            s += c_val[jj] * phi[c_idx[jj]]
-        q[f] = gamma_f[f] * S[f] * s
+    q = np.empty(c_ptr.size - 1)
+    _csr_matvec(c_ptr, c_idx, c_val, phi, q)
+    for f in range(q.size):
+        q[f] = gamma_f[f] * S[f] * q[f]
     out = np.empty(d_ptr.size - 1)
     _csr_matvec(d_ptr, d_idx, d_val, q, out)
     return out
+
+
+@njit(cache=True)
+def _dirichlet_gradient(P, N, S, nz, ny, delta, wall, wall_chord, wall_nz, wall_ny, wall_distance, Tinv, phi,
+                        wall_value):
+    """:meth:`Section.gradient` with one wall value for every wall face, compiled: (d/dz, d/dy)."""
+    gw = np.empty(wall.size)
+    for m in range(wall.size):
+        gw[m] = (wall_value - phi[wall[m]]) / wall_distance
+    return _reconstruct(P, N, S, nz, ny, _normal_difference(P, N, delta, phi), phi.size, wall, wall_chord, gw,
+                        wall_nz, wall_ny, Tinv, True)
 
 
 @njit(cache=True)
@@ -325,23 +335,15 @@ def _normal_difference(P, N, delta, phi):
 
 @njit(cache=True)
 def _reconstruct(P, N, S, nz, ny, g, n, wall, wall_chord, g_wall, wall_nz, wall_ny, Tinv, has_wall):
-    """:meth:`Section.reconstruct` compiled (the face sums over P and over N taken apart and
-    then added, as :func:`face_sums` does)."""
-    az = np.zeros(n)
-    bz = np.zeros(n)
-    ay = np.zeros(n)
-    by = np.zeros(n)
+    """:meth:`Section.reconstruct` compiled (the face sums by :func:`face_sums`)."""
+    sz = np.empty(P.size)
+    sy = np.empty(P.size)
     for f in range(P.size):
         t = S[f] * g[f]
-        sz = t * nz[f]
-        sy = t * ny[f]
-        az[P[f]] += sz
-        bz[N[f]] += sz
-        ay[P[f]] += sy
-        by[N[f]] += sy
-    for i in range(n):
-        az[i] += bz[i]
-        ay[i] += by[i]
+        sz[f] = t * nz[f]
+        sy[f] = t * ny[f]
+    az = face_sums(P, N, sz, sz, n)
+    ay = face_sums(P, N, sy, sy, n)
     if has_wall:
         for m in range(wall.size):
             c = wall[m]

@@ -38,7 +38,7 @@ from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
 from .linalg import AndersonMixing, LaggedSparseLU
-from .operators import CoupledCrossFlow, _csr_matvec, _interp, _normal_difference, _reconstruct, _transport, matvec
+from .operators import CoupledCrossFlow, _csr_matvec, _dirichlet_gradient, _interp, _transport, face_sums, matvec
 from .mesh import PipeMesh
 
 __all__ = ["GasProperties", "Sources", "GasField", "SolverDivergence", "solve"]
@@ -608,16 +608,12 @@ def _simplec_fluxes(P, N, S, delta, w, om, nz, ny, aPN, aNP, diag_m, drag_diag, 
     (sec.fsum): (d, flux, imbalance, coef, diag_p), each entry with the array form's arithmetic."""
     n = A.size
     nf = P.size
-    a = np.zeros(n)
-    b = np.zeros(n)
-    for f in range(nf):
-        a[P[f]] += abs(aPN[f])
-        b[N[f]] += abs(aNP[f])
+    offsum = face_sums(P, N, np.abs(aPN), np.abs(aNP), n)
     dP = np.empty(n)
     vz = np.empty(n)
     vy = np.empty(n)
     for i in range(n):
-        red = diag_m[i] - drag_diag[i] - (a[i] + b[i])
+        red = diag_m[i] - drag_diag[i] - offsum[i]
         if not red > 1e-3 * diag_m[i]:
             red = diag_m[i]
         dP[i] = A[i] / red
@@ -645,14 +641,10 @@ def _strain_squared(P, N, S, nz, ny, delta, wall, wall_chord, wall_nz, wall_ny, 
     + 2 (du_x/dx)^2, the gradients as Section.gradient(phi, 0.0) gives them, du_x/dx =
     (c0 u_x - hist)/dx; each entry with the array form's arithmetic."""
     n = ux.size
-    gw = np.empty(wall.size)
-    grads = []
-    for phi in (ux, uz, uy):
-        for m in range(wall.size):
-            gw[m] = (0.0 - phi[wall[m]]) / wall_distance
-        grads.append(_reconstruct(P, N, S, nz, ny, _normal_difference(P, N, delta, phi), n, wall, wall_chord, gw,
-                                  wall_nz, wall_ny, Tinv, True))
-    (ax_z, ax_y), (zz, zy), (yz, yy) = grads[0], grads[1], grads[2]
+    geometry = (P, N, S, nz, ny, delta, wall, wall_chord, wall_nz, wall_ny, wall_distance, Tinv)
+    ax_z, ax_y = _dirichlet_gradient(*geometry, ux, 0.0)
+    zz, zy = _dirichlet_gradient(*geometry, uz, 0.0)
+    yz, yy = _dirichlet_gradient(*geometry, uy, 0.0)
     G2 = np.empty(n)
     for i in range(n):
         dudx = (c0 * ux[i] - hist_ux[i]) / dx
