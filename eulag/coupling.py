@@ -681,7 +681,8 @@ class CouplingLoop:
         """The gas field with ``sources`` (None: single phase), its wall time and the implicit
         k-ε relaxation it needed (1 unless a first attempt diverged).  ``final``: a solve to
         convergence (periodic mode: not capped at gas_iterations_per_pass), from the last
-        iterate.  ``residual``: the coupling residual of ``sources`` (numerics.gas_station_retries,
+        iterate; a march station still converging when the usual extension of its iterations
+        runs out iterates on (rans.solver.FINAL_STATION_EXTENSION).  ``residual``: the coupling residual of ``sources`` (numerics.gas_station_retries,
         numerics.gas_tolerance_early)."""
         n = self.case.numerics
         g = self.case.gas
@@ -701,7 +702,9 @@ class CouplingLoop:
                                         g.inlet_epsilon, sources, tol=tol,
                                         max_iterations=cap, initial=initial,
                                         turbulence_relaxation=tr, momentum_relaxation=mr,
-                                        require_convergence=not inner, station_retries=retries)
+                                        require_convergence=not inner, station_retries=retries,
+                                        station_extension=(rans.solver.FINAL_STATION_EXTENSION if final
+                                                           else rans.solver.STATION_EXTENSION))
                     sr = field_.station_relaxation
                     used = min(tr, float(np.min(sr))) if sr is not None else tr
                     break

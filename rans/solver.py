@@ -224,6 +224,13 @@ STATION_RELAXATION = ((0.5, 1.0), (0.5, 0.7), (0.2, 0.5), (0.05, 0.3))
 #: a station still converging when its iterations run out iterates on, a quarter of them at a
 #: time, up to this many times its iterations (_march_station)
 STATION_EXTENSION = 4
+#: how far (in multiples of its iterations) an attempt of _march_station that is still converging
+#: (``_still_converging``) may iterate on, and its last resort beyond STATION_EXTENSION, where the
+#: caller asks for it (``solve(station_extension=...)``; the coupling loop's final solves, which
+#: decide whether a run converged): in near-laminar pockets under strong particle sinks an
+#: attempt can contract by only ~0.996 per iteration (scene h's final sources, x = 0.325 m:
+#: 6.4e-5 after 500 iterations, projected to reach the tolerance after ~2,000; docs/numerics.md)
+FINAL_STATION_EXTENSION = 16
 #: how straight log(change) must fall over the last quarter of an attempt's iterations for it to
 #: iterate on after an early bump (_still_converging, reading 2)
 STEADY_R2 = 0.9
@@ -837,6 +844,7 @@ def solve(
     require_convergence=True,
     production_limit=None,
     station_retries=True,
+    station_extension=STATION_EXTENSION,
 ):
     """Solve the steady gas flow on ``mesh``; returns a :class:`GasField`.
 
@@ -857,7 +865,9 @@ def solve(
     station_retries (developing): False returns a station whose first plain attempt stalls
     (its iterations run out without divergence) as it is, unconverged, instead of retrying it
     with the coupled step, more relaxation and the extension of _march_station; a diverging
-    attempt is retried either way.
+    attempt is retried either way.  station_extension (developing): how many times its
+    iterations the last resort of a stalled station may iterate in all while it is still
+    converging (at least STATION_EXTENSION, which it iterates to in any case).
     cross_flow_solver: "coupled" (direct solve of cross-section momentum and continuity),
     "simplec", or None: coupled in the periodic mode, SIMPLEC in the march (where the strong
     axial term makes it converge in a few iterations at a fraction of the cost).
@@ -995,7 +1005,7 @@ def solve(
             start = None if initial is None else _warm_state(initial, i, sec, gas.density)
             st, ok, iters[i], station_relax[i], station_coupled[i], station_change[i] = _march_station(
                 solver, prev1, hist, c0, h, src, laminar, turbulence_relaxation, station_iterations, stol,
-                residuals, start, retries=station_retries)
+                residuals, start, retries=station_retries, extension=station_extension)
             station_ok[i] = ok
             converged &= ok
             _store(out, G, tau, i, st)
@@ -1045,7 +1055,7 @@ def solve(
 
 
 def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_iterations, stol, residuals,
-                   start=None, retries=True):
+                   start=None, retries=True, extension=STATION_EXTENSION):
     """Iterate one station of the march to ``stol``: returns (state, converged, iterations,
     relaxation used, whether the coupled cross-flow step was used, the last iteration's
     (velocity, k-eps) change of the state, _StationSolver.last_change).
@@ -1086,7 +1096,8 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
        its iterations in all: a pocket of near-laminar cells can drift slowly for ~300
        iterations before the iteration contracts (scene h's pass 9, x = 0.9 m), a change that
        neither grows nor falls, which no reading of ``_still_converging`` can tell from a
-       wandering iteration, and which neither the relaxations nor the coupled step get past.
+       wandering iteration, and which neither the relaxations nor the coupled step get past;
+       with ``extension`` above STATION_EXTENSION, on beyond that while it is still converging.
 
     An attempt on a limit cycle (its changes repeating with a period of 2-32 iterations:
     ``_cycling``) ends as if its iterations had run out and is not the last resort's to iterate
@@ -1098,8 +1109,9 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
 
     An attempt that is still converging when its iterations run out (the largest change of the
     last quarter of them fell from the quarter before, or the last quarter's changes fall on a
-    straight line in log(change), at a rate that reaches the tolerance within
-    STATION_EXTENSION times its iterations: ``_still_converging``) iterates on, a quarter
+    straight line in log(change), at a rate that reaches the tolerance within ``extension``
+    (STATION_EXTENSION unless the caller asks for more) times its iterations:
+    ``_still_converging``) iterates on, a quarter
     at a time, before any retry; if it diverges while iterating on, it ends as the unconverged
     state where its iterations ran out.  Where noisy particle sinks leave k at 1e-3 of its level
     in a few cells, k and eps there contract slowly but steadily (0.97-0.99 per iteration with
@@ -1165,10 +1177,10 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                         if not _unpack(st, mixing.next(x_in, _pack(st)), solver):
                             mixing.reset()  # a step far out: the plain image stands, the history restarts
                     if (it == limit and not accelerate
-                            and _still_converging(changes, chunk, tol, STATION_EXTENSION * cap - it)):
+                            and _still_converging(changes, chunk, tol, extension * cap - it)):
                         if at_cap is None:
                             at_cap = (ch, st.copy(), it, solver.last_change)
-                        limit = min(limit + chunk, STATION_EXTENSION * cap)
+                        limit = min(limit + chunk, extension * cap)
             except SolverDivergence:
                 if at_cap is None:
                     if a + 1 == len(attempts) and best is None:
@@ -1193,16 +1205,23 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
             # to STATION_EXTENSION times its cap (unless it was extended that far already),
             # through a slow drift that none of the attempts above gets past (scene h,
             # x = 0.9 m: ~300 iterations, then a fast contraction)
+            # and, with ``extension`` above STATION_EXTENSION, a quarter of its iterations at a time
+            # beyond that while it is still converging (_still_converging)
             st, it, cap = resume
             solver.alpha_u, solver.coupled = alpha_u, coupled
             r = min(relax, alpha_u)
+            chunk, limit, tail = max(cap // 4, 1), STATION_EXTENSION * cap, []
             try:
-                while it < STATION_EXTENSION * cap:
+                while it < limit:
                     ch = solver.iterate(st, hist, c0, h, src, laminar, relax)
                     residuals.append(ch)
+                    tail.append(ch)
                     it += 1
                     if ch < stol * r:
                         return st, True, it, r, coupled, solver.last_change
+                    if (it == limit and limit < extension * cap
+                            and _still_converging(tail, chunk, stol * r, extension * cap - it)):
+                        limit = min(limit + chunk, extension * cap)
             except SolverDivergence:
                 pass
             else:

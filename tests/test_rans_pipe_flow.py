@@ -749,6 +749,42 @@ def test_a_station_without_retries_keeps_its_first_attempt():
     assert ok and s.calls == 3  # a divergence is retried even without retries of stalls
 
 
+def test_a_slow_steady_contraction_converges_with_the_final_solves_extension():
+    """A station whose first attempt contracts by 0.996 per iteration from a change of 1e-3 needs
+    ~1,700 iterations, more than STATION_EXTENSION (4) times its cap of 200: it is returned
+    unconverged at its cap (_still_converging sees it will not arrive in time), with ``extension`` = FINAL_STATION_EXTENSION (the coupling loop's final
+    solves) it iterates on while it is still converging and converges; a station whose change
+    stays level gets no more iterations from the larger extension."""
+    from rans import solver as rs
+
+    class Contracting:
+        alpha_u, coupled, last_change = 1.0, False, (1.0, 1.0)
+
+        def __init__(self, rate):
+            self.rate, self.calls = rate, 0
+
+        def iterate(self, st, *args):
+            self.calls += 1
+            return 1e-3 * self.rate ** self.calls
+
+    class State:
+        def copy(self):
+            return State()
+
+    assert rs.FINAL_STATION_EXTENSION > rs.STATION_EXTENSION
+    runs = {}
+    for rate in (0.996, 1.0):
+        for ext in (rs.STATION_EXTENSION, rs.FINAL_STATION_EXTENSION):
+            s = Contracting(rate)
+            _, ok, *_ = rs._march_station(s, State(), None, None, None, None, True, 1.0, (2, 200), 1e-6, [],
+                                          retries=False, extension=ext)
+            runs[rate, ext] = (ok, s.calls)
+    assert runs[0.996, rs.STATION_EXTENSION] == (False, 200), runs
+    ok, calls = runs[0.996, rs.FINAL_STATION_EXTENSION]
+    assert ok and 1700 <= calls <= 1750, runs
+    assert runs[1.0, rs.STATION_EXTENSION] == runs[1.0, rs.FINAL_STATION_EXTENSION] == (False, 200), runs
+
+
 def test_an_attempt_on_a_limit_cycle_ends_before_its_cap_and_a_level_stall_does_not():
     """_march_station ends an attempt whose changes repeat with a period of 2 or more (k jumping
     up and down at the axis: 31, 0.97, 31, ...) after a few periods instead of at its cap of
