@@ -682,8 +682,8 @@ class CouplingLoop:
         k-ε relaxation it needed (1 unless a first attempt diverged).  ``final``: a solve to
         convergence (periodic mode: not capped at gas_iterations_per_pass), from the last
         iterate; a march station still converging when the usual extension of its iterations
-        runs out iterates on (rans.solver.FINAL_STATION_EXTENSION).  ``residual``: the coupling residual of ``sources`` (numerics.gas_station_retries,
-        numerics.gas_tolerance_early)."""
+        runs out iterates on (rans.solver.FINAL_STATION_EXTENSION).  ``residual``: the coupling
+        residual of ``sources`` (numerics.gas_station_retries, numerics.gas_tolerance_early)."""
         n = self.case.numerics
         g = self.case.gas
         initial = self.gas if self.mesh.mode == "periodic" else None

@@ -866,8 +866,8 @@ def solve(
     (its iterations run out without divergence) as it is, unconverged, instead of retrying it
     with the coupled step, more relaxation and the extension of _march_station; a diverging
     attempt is retried either way.  station_extension (developing): how many times its
-    iterations the last resort of a stalled station may iterate in all while it is still
-    converging (at least STATION_EXTENSION, which it iterates to in any case).
+    iterations an attempt that is still converging, and the last resort of a stalled station,
+    may iterate in all (at least STATION_EXTENSION, the default; _march_station).
     cross_flow_solver: "coupled" (direct solve of cross-section momentum and continuity),
     "simplec", or None: coupled in the periodic mode, SIMPLEC in the march (where the strong
     axial term makes it converge in a few iterations at a fraction of the cost).
@@ -1113,7 +1113,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
     (STATION_EXTENSION unless the caller asks for more) times its iterations:
     ``_still_converging``) iterates on, a quarter
     at a time, before any retry; if it diverges while iterating on, it ends as the unconverged
-    state where its iterations ran out.  Where noisy particle sinks leave k at 1e-3 of its level
+    state where its iterations last ran out.  Where noisy particle sinks leave k at 1e-3 of its level
     in a few cells, k and eps there contract slowly but steadily (0.97-0.99 per iteration with
     tracer-like sinks at alpha = 0.3), and the coupled step, started again from the upstream
     state, only repeats that contraction (the sinks benchmark of docs/numerics.md, "Gas solver").
@@ -1126,6 +1126,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
     GasField.station_converged.
     """
     lo, hi = station_iterations
+    extension = max(extension, STATION_EXTENSION)
     alpha_u, coupled = solver.alpha_u, solver.coupled
     attempts = [(relax, alpha_u, coupled, False)]
     if not coupled:
@@ -1149,7 +1150,7 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
             cap = hi if (r, m) == (relax, alpha_u) else int(hi * min(1.0 / min(r, m), 4.0))
             chunk = max(cap // 4, 1)
             limit, it, changes = cap, 0, []
-            at_cap = None  # the unconverged state where the iterations ran out, if iterated on
+            at_cap = None  # the unconverged state where the iterations last ran out, if iterated on
             mixing = smallest = None
             cycled = False
             try:
@@ -1178,15 +1179,15 @@ def _march_station(solver, prev, hist, c0, h, src, laminar, relax, station_itera
                             mixing.reset()  # a step far out: the plain image stands, the history restarts
                     if (it == limit and not accelerate
                             and _still_converging(changes, chunk, tol, extension * cap - it)):
-                        if at_cap is None:
-                            at_cap = (ch, st.copy(), it, solver.last_change)
+                        # the state where the iterations ran out, the last time they did
+                        at_cap = (ch, st.copy(), it, solver.last_change)
                         limit = min(limit + chunk, extension * cap)
             except SolverDivergence:
                 if at_cap is None:
                     if a + 1 == len(attempts) and best is None:
                         raise
                     continue
-                # diverged while iterating on: the attempt ends where its iterations ran out
+                # diverged while iterating on: the attempt ends where its iterations last ran out
                 ch, st, it, last = at_cap
             else:
                 last = solver.last_change

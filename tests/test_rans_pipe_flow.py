@@ -752,9 +752,13 @@ def test_a_station_without_retries_keeps_its_first_attempt():
 def test_a_slow_steady_contraction_converges_with_the_final_solves_extension():
     """A station whose first attempt contracts by 0.996 per iteration from a change of 1e-3 needs
     ~1,700 iterations, more than STATION_EXTENSION (4) times its cap of 200: it is returned
-    unconverged at its cap (_still_converging sees it will not arrive in time), with ``extension`` = FINAL_STATION_EXTENSION (the coupling loop's final
-    solves) it iterates on while it is still converging and converges; a station whose change
-    stays level gets no more iterations from the larger extension."""
+    unconverged at its cap (_still_converging sees it will not arrive in time); with
+    ``extension`` = FINAL_STATION_EXTENSION (the coupling loop's final solves) it iterates on
+    while it is still converging and converges.  A station whose change stays level gets no
+    more iterations from the larger extension.  With the retries, a station that drifts level
+    for 500 iterations and then contracts by 0.996 is taken on by the last resort: unconverged
+    at 4 x 200 iterations, converged with the larger extension.  An attempt that diverges
+    while iterating on ends where its iterations last ran out, not at its first cap."""
     from rans import solver as rs
 
     class Contracting:
@@ -783,6 +787,41 @@ def test_a_slow_steady_contraction_converges_with_the_final_solves_extension():
     ok, calls = runs[0.996, rs.FINAL_STATION_EXTENSION]
     assert ok and 1700 <= calls <= 1750, runs
     assert runs[1.0, rs.STATION_EXTENSION] == runs[1.0, rs.FINAL_STATION_EXTENSION] == (False, 200), runs
+
+    class Counted:  # a state that knows how many iterations led to it
+        n, change = 0, None
+
+        def copy(self):
+            c = Counted()
+            c.n, c.change = self.n, self.change
+            return c
+
+    class DriftThenContract(Contracting):  # level for 500 iterations of any attempt, then 0.996
+        def iterate(self, st, *args):
+            self.calls += 1
+            st.n += 1
+            return 0.5 if st.n <= 500 else 1e-3 * self.rate ** (st.n - 500)
+
+    for ext, converges in ((rs.STATION_EXTENSION, False), (rs.FINAL_STATION_EXTENSION, True)):
+        s = DriftThenContract(0.996)
+        state, ok, *_ = rs._march_station(s, Counted(), None, None, None, None, True, 1.0, (2, 200), 1e-6, [],
+                                          extension=ext)
+        assert ok == converges, (ext, s.calls, state.n)
+    assert 2200 <= state.n <= 2300, state.n  # the first attempt's state carried on by the last resort
+
+    class DivergesLate(Contracting):
+        def iterate(self, st, *args):
+            self.calls += 1
+            if self.calls == 1500:
+                raise rs.SolverDivergence("diverged while iterating on (test)")
+            st.n += 1
+            st.change = 1e-3 * self.rate ** self.calls
+            return st.change
+
+    s = DivergesLate(0.997)
+    state, ok, it, *_ = rs._march_station(s, Counted(), None, None, None, None, True, 1.0, (2, 200), 1e-6, [],
+                                          retries=False, extension=rs.FINAL_STATION_EXTENSION)
+    assert not ok and it > 1400 and state.change < 2e-5, (it, state.change)
 
 
 def test_an_attempt_on_a_limit_cycle_ends_before_its_cap_and_a_level_stall_does_not():
