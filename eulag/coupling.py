@@ -664,6 +664,7 @@ class CouplingLoop:
         self.replica_pressure_gradients = []  # the section-mean -dp/dx(x) of those solves
         self.gas_relaxed = None
         self.gas_field_note = "last relaxed iterate of the coupling loop"
+        self.final_solve_failure = None  # why the solve on the final passes' averaged sources failed
         self.last_sample = None
         if resume and self.checkpoint is not None and self.checkpoint.exists():
             self._load()
@@ -872,7 +873,8 @@ class CouplingLoop:
                 self.finished = True
                 if self.two_way:
                     self._final_gas_solves()
-                self.converged = (self.converged or not self.two_way) and bool(self.gas.converged)
+                self.converged = ((self.converged or not self.two_way) and bool(self.gas.converged)
+                                  and self.final_solve_failure is None)
         elif self._converged_now():
             self.converged = True
             self.converged_at = m
@@ -935,7 +937,11 @@ class CouplingLoop:
         pass's own sources (``self.replicas``: the gas velocities at the first reported station;
         ``self.replica_pressure_gradients``: the section-mean −dp/dx along the pipe, whose spread
         is the error bar of the averaged solve's −dp/dx, and whose order shows a drift over the
-        final passes). The relaxed iterate the loop ended with is kept as ``self.gas_relaxed``."""
+        final passes). The relaxed iterate the loop ended with is kept as ``self.gas_relaxed``.
+        Should the solve on the averaged sources diverge (their noise, no longer relaxed, can
+        reverse the flow over a dense bottom layer), the relaxed iterate stays the dataset's gas
+        field and the run is reported as not converged (``final_solve_failure``, stop_reason):
+        the passes are not lost."""
         avg = self._computed_sources(self.sample())
         self.gas_relaxed = self.gas
 
@@ -947,11 +953,17 @@ class CouplingLoop:
 
         try:
             self.gas = solve(avg)
+            self.gas_field_note = "solve on the averaged sources of the final passes"
         except rans.SolverDivergence as err:
-            raise CouplingError(f"the gas solve on the averaged sources of the final passes failed ({err}); "
-                                "the relaxed iterate converged, so the final passes' sources differ "
-                                "more than their relaxation hid") from None
-        self.gas_field_note = "solve on the averaged sources of the final passes"
+            # nothing lost: the dataset keeps the relaxed iterate (the gas the final passes ran in)
+            # and the run is reported as not converged, with the reason
+            self.final_solve_failure = str(err)
+            self.gas = self.gas_relaxed
+            self.gas_field_note = ("last relaxed iterate of the coupling loop (the gas the final passes ran in): "
+                                   f"the solve on the averaged sources of the final passes diverged ({err})")
+            self._tell(f"the gas solve on the averaged sources of the final passes diverged ({err}); the final "
+                       "passes' sources differ more than their relaxation hid. The dataset keeps the last "
+                       "relaxed iterate and reports the run as not converged")
         i = int(np.argmin(np.abs(np.asarray(self.mesh.x) - self.case.pipe.sections[0])))
         self.replicas = []
         self.replica_pressure_gradients = []
@@ -1042,6 +1054,11 @@ class CouplingLoop:
         if self.converged:
             return (f"converged after pass {self.converged_at}; then {self.window_n} final passes "
                     "averaged")
+        if self.final_solve_failure is not None:
+            how = (f"the loop converged after pass {self.converged_at}, but" if self.converged_at is not None
+                   else f"max_passes = {self.case.numerics.max_passes} was reached, and")
+            return (f"not converged: {how} the gas solve on the {self.window_n} final passes' averaged sources "
+                    f"diverged ({self.final_solve_failure}); the gas field is the last relaxed iterate")
         if self.converged_at is not None and not self.gas.converged:
             sc = getattr(self.gas, "station_converged", None)
             where = (f" at {int(np.size(sc) - np.count_nonzero(sc))} of {np.size(sc)} stations"
@@ -1123,6 +1140,7 @@ class CouplingLoop:
                 "alpha_cap": self.alpha_cap, "recovered": self.recovered,
                 "converged_at": self.converged_at, "criteria": [c.__dict__ for c in self.criteria],
                 "window_n": self.window_n, "gas_field_note": self.gas_field_note,
+                "final_solve_failure": self.final_solve_failure,
                 "window_batches": self.window_batches, "window_parcels": self.window_parcels,
                 "timings": self.timings}
         arrays["meta"] = np.frombuffer(json.dumps(meta, default=_json_default).encode(), dtype=np.uint8)
@@ -1191,6 +1209,7 @@ class CouplingLoop:
         self.recovered = meta.get("recovered", False)
         self.converged_at = meta.get("converged_at")
         self.gas_field_note = meta.get("gas_field_note", self.gas_field_note)
+        self.final_solve_failure = meta.get("final_solve_failure")
         i = 0
         while f"final_{i}_momentum" in data:
             self.final_sources.append({"momentum": data[f"final_{i}_momentum"], "k": data[f"final_{i}_k"]})

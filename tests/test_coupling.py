@@ -913,3 +913,33 @@ def test_run_summary_prints_each_final_pass_pressure_gradient(tmp_path):
     line = next(ln for ln in text.splitlines() if "each final pass alone" in ln)
     means = res.dataset["replica_pressure_gradient"].values.mean(axis=1)
     assert line.endswith(", ".join(f"{v:.4g}" for v in means) + " Pa/m"), line
+
+
+def test_a_diverging_final_solve_keeps_the_relaxed_iterate_and_reports_the_run_unconverged(tmp_path, monkeypatch):
+    """Should the gas solve on the final passes' averaged sources diverge (unrelaxed, their noise
+    can reverse the flow over a dense bottom layer), the passes are not lost: the dataset keeps
+    the last relaxed iterate as its gas field, says so, and the run is not converged, with the
+    reason in its stop reason; a resumed finished run reports the same."""
+    import rans
+
+    orig = CouplingLoop._solve_gas
+    failed = []
+
+    def solve_gas(self, sources, final=False, **kwargs):
+        if final and not failed:  # the first final solve: the one on the averaged sources
+            failed.append(True)
+            raise rans.SolverDivergence("gas solve diverged: u_x = -7.2 at x = 0.55 m (test)")
+        return orig(self, sources, final=final, **kwargs)
+
+    monkeypatch.setattr(CouplingLoop, "_solve_gas", solve_gas)
+    out = tmp_path / "out.nc"
+    ds = run(small_case(), out)
+    assert failed and out.exists()
+    assert int(ds["converged"].values) == 0
+    reason = str(ds.attrs["stop_reason"])
+    assert reason.startswith("not converged:") and "averaged sources diverged" in reason, reason
+    assert "u_x = -7.2" in reason and "last relaxed iterate" in reason
+    assert "last relaxed iterate" in str(ds.attrs["gas_field"]), ds.attrs["gas_field"]
+    assert np.all(np.isfinite(ds["gas_ux"].values))
+    again = run(small_case(), out, resume=True)
+    assert str(again.attrs["stop_reason"]) == reason
