@@ -573,7 +573,7 @@ def checkpoint_problem(meta, residual, case):
     what = f"numerics.max_passes changed from {old} to {new}"
     if done > new:
         return f"{what}, but the checkpoint has done {done} passes"
-    if meta.get("phase") == "final" and not meta.get("converged"):
+    if meta.get("phase") == "final" and meta.get("converged_at") is None:
         return f"{what}, but the checkpoint's final passes were started by the limit {old}"
     if meta.get("phase") == "final" and done + int(meta.get("final_left", 0)) > new:
         return f"{what}, fewer than the {done + int(meta.get('final_left', 0))} passes its final passes need"
@@ -938,7 +938,7 @@ class CouplingLoop:
         ``self.replica_pressure_gradients``: the section-mean −dp/dx along the pipe, whose spread
         is the error bar of the averaged solve's −dp/dx, and whose order shows a drift over the
         final passes). The relaxed iterate the loop ended with is kept as ``self.gas_relaxed``.
-        Should the solve on the averaged sources diverge (their noise, no longer relaxed, can
+        Should the solve on the averaged sources fail (their noise, no longer relaxed, can
         reverse the flow over a dense bottom layer), the relaxed iterate stays the dataset's gas
         field and the run is reported as not converged (``final_solve_failure``, stop_reason):
         the passes are not lost."""
@@ -955,15 +955,15 @@ class CouplingLoop:
             self.gas = solve(avg)
             self.gas_field_note = "solve on the averaged sources of the final passes"
         except rans.SolverDivergence as err:
-            # nothing lost: the dataset keeps the relaxed iterate (the gas the final passes ran in)
-            # and the run is reported as not converged, with the reason
+            # nothing lost: self.gas stays the relaxed iterate, which the dataset keeps, and the run
+            # is reported as not converged, with the reason
             self.final_solve_failure = str(err)
-            self.gas = self.gas_relaxed
-            self.gas_field_note = ("last relaxed iterate of the coupling loop (the gas the final passes ran in): "
-                                   f"the solve on the averaged sources of the final passes diverged ({err})")
-            self._tell(f"the gas solve on the averaged sources of the final passes diverged ({err}); the final "
-                       "passes' sources differ more than their relaxation hid. The dataset keeps the last "
-                       "relaxed iterate and reports the run as not converged")
+            self.gas_field_note = ("relaxed iterate after the last final pass: the solve on the averaged "
+                                   f"sources of the final passes failed ({err})")
+            self._tell(f"the gas solve on the averaged sources of the final passes failed ({err}); their sources "
+                       "differ more than their relaxation hid (more parcels per final pass or more "
+                       "numerics.average_passes average more noise out). The dataset keeps the relaxed "
+                       "iterate and reports the run as not converged")
         i = int(np.argmin(np.abs(np.asarray(self.mesh.x) - self.case.pipe.sections[0])))
         self.replicas = []
         self.replica_pressure_gradients = []
@@ -1055,10 +1055,12 @@ class CouplingLoop:
             return (f"converged after pass {self.converged_at}; then {self.window_n} final passes "
                     "averaged")
         if self.final_solve_failure is not None:
+            failed = "; ".join(c.line() for c in self.criteria if not c.met)
             how = (f"the loop converged after pass {self.converged_at}, but" if self.converged_at is not None
-                   else f"max_passes = {self.case.numerics.max_passes} was reached, and")
+                   else f"max_passes = {self.case.numerics.max_passes} was reached ({failed}), and")
             return (f"not converged: {how} the gas solve on the {self.window_n} final passes' averaged sources "
-                    f"diverged ({self.final_solve_failure}); the gas field is the last relaxed iterate")
+                    f"failed ({self.final_solve_failure}); the gas field is the relaxed iterate after the "
+                    "last final pass")
         if self.converged_at is not None and not self.gas.converged:
             sc = getattr(self.gas, "station_converged", None)
             where = (f" at {int(np.size(sc) - np.count_nonzero(sc))} of {np.size(sc)} stations"

@@ -378,7 +378,10 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
             ("replica", "x"), np.stack(loop.replica_pressure_gradients), "Pa m-1",
             "section-mean -dp/dx solved on the sources of one final pass alone, in the order of the "
             "final passes: its spread is the error bar of pressure_gradient, its trend a drift "
-            "over the final passes")
+            "over the final passes" if getattr(loop, "final_solve_failure", None) is None else
+            "section-mean -dp/dx solved on the sources of one final pass alone, in the order of the "
+            "final passes (the solve on their averaged sources failed: pressure_gradient is the relaxed "
+            "iterate's, which their spread does not bound)")
     ds["time_gas_solve_pass"] = _var(it, h["time_gas"], "s", "wall-clock time of the pass's gas solve")
     ds["time_lagrangian_pass"] = _var(it, h["time_particles"], "s", "wall-clock time of the Lagrangian pass")
 
@@ -412,6 +415,8 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
         "stop_reason": loop.stop_reason,
         "gas_field": loop.gas_field_note,
     })
+    if getattr(loop, "final_solve_failure", None) is not None:  # the solve on the averaged sources failed
+        ds.attrs["final_solve_failure"] = loop.final_solve_failure
     if attrs:
         ds.attrs.update(attrs)
     return ds
