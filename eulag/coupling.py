@@ -665,6 +665,7 @@ class CouplingLoop:
         self.gas_relaxed = None
         self.gas_field_note = "last relaxed iterate of the coupling loop"
         self.final_solve_failure = None  # why the solve on the final passes' averaged sources failed
+        self.replica_failures = []  # "final pass j of n: why", for each final pass whose own solve failed
         self.last_sample = None
         if resume and self.checkpoint is not None and self.checkpoint.exists():
             self._load()
@@ -967,11 +968,18 @@ class CouplingLoop:
         i = int(np.argmin(np.abs(np.asarray(self.mesh.x) - self.case.pipe.sections[0])))
         self.replicas = []
         self.replica_pressure_gradients = []
-        for src in self.final_sources:
+        self.replica_failures = []
+        for j, src in enumerate(self.final_sources):
             try:
                 r = solve(src)
-            except rans.SolverDivergence:
-                continue  # the replica is missing; its error bar rests on the others
+            except rans.SolverDivergence as err:
+                # the replica is missing and the error bars rest on the others; said in the
+                # dataset (replica_solve_failures) and here
+                what = f"final pass {j + 1} of {len(self.final_sources)}: {err}"
+                self.replica_failures.append(what)
+                self._tell(f"the gas solve on the sources of {what}; that replica is left out of the "
+                           "error bars")
+                continue
             self.replicas.append(np.stack([np.asarray(r.ux)[i], np.asarray(r.uy)[i], np.asarray(r.uz)[i]]))
             self.replica_pressure_gradients.append(np.asarray(r.pressure_gradient, dtype=float).copy())
 
@@ -1143,6 +1151,7 @@ class CouplingLoop:
                 "converged_at": self.converged_at, "criteria": [c.__dict__ for c in self.criteria],
                 "window_n": self.window_n, "gas_field_note": self.gas_field_note,
                 "final_solve_failure": self.final_solve_failure,
+                "replica_failures": self.replica_failures,
                 "window_batches": self.window_batches, "window_parcels": self.window_parcels,
                 "timings": self.timings}
         arrays["meta"] = np.frombuffer(json.dumps(meta, default=_json_default).encode(), dtype=np.uint8)
@@ -1212,6 +1221,7 @@ class CouplingLoop:
         self.converged_at = meta.get("converged_at")
         self.gas_field_note = meta.get("gas_field_note", self.gas_field_note)
         self.final_solve_failure = meta.get("final_solve_failure")
+        self.replica_failures = list(meta.get("replica_failures", []))
         i = 0
         while f"final_{i}_momentum" in data:
             self.final_sources.append({"momentum": data[f"final_{i}_momentum"], "k": data[f"final_{i}_k"]})

@@ -26,6 +26,16 @@ __all__ = ["gas_dataset", "coupled_dataset", "write_dataset", "atomic_write", "C
 CONVENTIONS = "CF-1.8"
 
 
+def _missing_replicas(loop) -> str:
+    """The note the replica variables carry when some final passes' own solves failed."""
+    failed = getattr(loop, "replica_failures", None) or []
+    if not failed:
+        return ""
+    n = len(failed) + len(loop.replica_pressure_gradients)
+    return (f" ({n - len(failed)} of the {n} final passes: the solves on the others' sources failed, "
+            "see the attribute replica_solve_failures)")
+
+
 def _var(dims, values, units: str, long_name: str, **extra) -> xr.Variable:
     attrs = {"units": units, "long_name": long_name, **extra}
     return xr.Variable(dims, np.asarray(values, dtype=np.float64), attrs)
@@ -371,17 +381,18 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
             ds[f"replica_gas_u{comp}"] = _var(
                 ("replica", "r", "theta"), rep[:, c], "m s-1",
                 f"gas velocity {comp} at x = {case.pipe.sections[0]:g} m (the nearest station), solved on the "
-                "sources of one final pass alone: the replicas behind the pattern metrics' error bars",
+                "sources of one final pass alone: the replicas behind the pattern metrics' error bars"
+                + _missing_replicas(loop),
                 coordinates="y z")
     if loop.replica_pressure_gradients:
         ds["replica_pressure_gradient"] = _var(
             ("replica", "x"), np.stack(loop.replica_pressure_gradients), "Pa m-1",
-            "section-mean -dp/dx solved on the sources of one final pass alone, in the order of the "
+            ("section-mean -dp/dx solved on the sources of one final pass alone, in the order of the "
             "final passes: its spread is the error bar of pressure_gradient, its trend a drift "
             "over the final passes" if getattr(loop, "final_solve_failure", None) is None else
             "section-mean -dp/dx solved on the sources of one final pass alone, in the order of the "
             "final passes (the solve on their averaged sources failed: pressure_gradient is the relaxed "
-            "iterate's, which their spread does not bound)")
+            "iterate's, which their spread does not bound)") + _missing_replicas(loop))
     ds["time_gas_solve_pass"] = _var(it, h["time_gas"], "s", "wall-clock time of the pass's gas solve")
     ds["time_lagrangian_pass"] = _var(it, h["time_particles"], "s", "wall-clock time of the Lagrangian pass")
 
@@ -417,6 +428,8 @@ def coupled_dataset(loop, *, attrs: Mapping[str, Any] | None = None) -> xr.Datas
     })
     if getattr(loop, "final_solve_failure", None) is not None:  # the solve on the averaged sources failed
         ds.attrs["final_solve_failure"] = loop.final_solve_failure
+    if getattr(loop, "replica_failures", None):  # final passes whose own solve failed: no replica
+        ds.attrs["replica_solve_failures"] = "; ".join(loop.replica_failures)
     if attrs:
         ds.attrs.update(attrs)
     return ds

@@ -956,3 +956,41 @@ def test_a_diverging_final_solve_keeps_the_relaxed_iterate_and_reports_the_run_u
     assert int(ds2["converged"].values) == 0
     assert str(ds2.attrs["stop_reason"]).startswith("not converged: the loop converged after pass 2, but the gas "
                                                     "solve on the 2 final passes' averaged sources failed")
+
+
+def test_a_final_pass_whose_own_solve_fails_is_named_in_the_dataset(tmp_path, monkeypatch):
+    """A replica (the gas solved on one final pass's sources alone, behind the error bars) whose
+    solve fails is left out, and the dataset says which final pass and why: the attribute
+    replica_solve_failures and the replica variables' long names; a resumed finished run
+    gives the same."""
+    import rans
+
+    orig = CouplingLoop._solve_gas
+    calls = []
+
+    def solve_gas(self, sources, final=False, **kwargs):
+        if final:
+            calls.append(self.pass_index)
+            if len(calls) == 2:  # the averaged sources first, then the first final pass's own
+                raise rans.SolverDivergence("gas solve diverged: u_x = -3.1 at x = 0.25 m (test)")
+        return orig(self, sources, final=final, **kwargs)
+
+    monkeypatch.setattr(CouplingLoop, "_solve_gas", solve_gas)
+    out = tmp_path / "out.nc"
+    ds = run(small_case(), out)
+    n = int(ds.attrs["final_passes_averaged"])
+    assert n >= 2 and len(calls) == n + 1
+    assert ds.attrs["replica_solve_failures"] == f"final pass 1 of {n}: gas solve diverged: u_x = -3.1 at x = 0.25 m (test)"
+    assert ds["replica_pressure_gradient"].shape[0] == n - 1 and ds["replica_gas_ux"].shape[0] == n - 1
+    note = f"({n - 1} of the {n} final passes: the solves on the others' sources failed"
+    assert note in ds["replica_pressure_gradient"].attrs["long_name"] and note in ds["replica_gas_uy"].attrs["long_name"]
+    assert "final_solve_failure" not in ds.attrs and ds.attrs["gas_field"] == "solve on the averaged sources of the final passes"
+    again = run(small_case(), out, resume=True)
+    data_vars_equal(ds, again)
+    assert again.attrs["replica_solve_failures"] == ds.attrs["replica_solve_failures"]
+
+    # no failure, no attribute and no note
+    monkeypatch.setattr(CouplingLoop, "_solve_gas", orig)
+    clean = run(small_case(), tmp_path / "clean.nc")
+    assert "replica_solve_failures" not in clean.attrs
+    assert "failed" not in clean["replica_pressure_gradient"].attrs["long_name"]
