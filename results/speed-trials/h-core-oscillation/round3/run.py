@@ -1,4 +1,4 @@
-"""Proxy-h relaxation trial: python run.py LABEL RELAXATION MODE   (MODE: shipped | fixed | floor)"""
+"""Proxy trial: python run.py LABEL RELAXATION MODE [SCENE]   (MODE: shipped | fixed | floor; env W = drag_implicit_weight, AXIAL = axial cells)"""
 import sys, time, json
 from pathlib import Path
 import numba
@@ -22,7 +22,8 @@ elif mode == "floor":  # stagnation halving not below case alpha / 2
             print("  (floor: halving refused)", flush=True)
     C.CouplingLoop._adapt_relaxation = adapt
 base = Case.from_toml(CASES_DIR / "scenes" / f"scene_{scene}.toml").replace(numerics={**PROXY_NUMERICS, "max_passes": 90})
-case = base.replace(name=f"proxy_{scene}_{label}", numerics={"relaxation": alpha})
+import os
+case = base.replace(name=f"proxy_{scene}_{label}", numerics={"relaxation": alpha, **({"drag_implicit_weight": float(os.environ["W"])} if os.environ.get("W") else {}), **({"axial_cells": int(os.environ["AXIAL"])} if os.environ.get("AXIAL") else {})})
 out = Path("/tmp/alpha") / f"{case.name}.nc"
 t = time.perf_counter()
 def prog(s):

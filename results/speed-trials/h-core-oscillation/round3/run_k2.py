@@ -1,6 +1,6 @@
 """Proxy-h trial: the shipped loop (adaptive alpha, criteria, final passes), the k source
 relaxed with its own weight alpha_k = MODE(alpha).
-python run_k2.py LABEL MODE [SEED]   MODE: quarter (alpha/4) | cap075 (min(alpha, 0.075)) | same"""
+python run_k2.py LABEL MODE [SEED]   MODE: quarter (alpha/4) | cap075 (min(alpha, 0.075)) | same | fixed075; env NOADAPT=1: alpha never changed"""
 import sys, time, json, math
 from pathlib import Path
 import numpy as np
@@ -12,7 +12,7 @@ import eulag.coupling as C
 label, mode = sys.argv[1], sys.argv[2]
 seed = int(sys.argv[3]) if len(sys.argv) > 3 else 1
 numba.set_num_threads(1)
-ak_of = {"quarter": lambda a: a / 4, "cap075": lambda a: min(a, 0.075), "same": lambda a: a}[mode]
+ak_of = {"quarter": lambda a: a / 4, "cap075": lambda a: min(a, 0.075), "same": lambda a: a, "fixed075": lambda a: 0.075}[mode]
 
 def relax(self, comp, sample, alpha):
     prev = self.sources
@@ -43,6 +43,9 @@ def relax(self, comp, sample, alpha):
         residual = float(np.sqrt(np.mean(z * z)))
     return new, residual
 
+import os
+if os.environ.get("NOADAPT"):
+    C.CouplingLoop._adapt_relaxation = lambda self: None
 if mode != "same":
     C.CouplingLoop._relax = relax
 base = Case.from_toml(CASES_DIR / "scenes" / "scene_h.toml").replace(numerics={**PROXY_NUMERICS, "max_passes": 90})
