@@ -1,4 +1,4 @@
-"""Proxy trial: python run.py LABEL RELAXATION MODE [SCENE]   (MODE: shipped | fixed | floor; env W = drag_implicit_weight, AXIAL = axial cells)"""
+"""Proxy-h relaxation trial: python run.py LABEL RELAXATION MODE   (MODE: shipped | fixed | floor)"""
 import sys, time, json
 from pathlib import Path
 import numba
@@ -23,7 +23,7 @@ elif mode == "floor":  # stagnation halving not below case alpha / 2
     C.CouplingLoop._adapt_relaxation = adapt
 base = Case.from_toml(CASES_DIR / "scenes" / f"scene_{scene}.toml").replace(numerics={**PROXY_NUMERICS, "max_passes": 90})
 import os
-case = base.replace(name=f"proxy_{scene}_{label}", numerics={"relaxation": alpha, **({"drag_implicit_weight": float(os.environ["W"])} if os.environ.get("W") else {}), **({"axial_cells": int(os.environ["AXIAL"])} if os.environ.get("AXIAL") else {})})
+case = base.replace(name=f"proxy_{scene}_{label}", numerics={"relaxation": alpha, **({"drag_implicit_weight": float(os.environ["W"])} if os.environ.get("W") else {}), **({"axial_cells": int(os.environ["AXIAL"])} if os.environ.get("AXIAL") else {}), **({"coupling_tolerance": float(os.environ["TOL"]), "max_passes": int(os.environ.get("MAXP", 80))} if os.environ.get("TOL") else {})})
 out = Path("/tmp/alpha") / f"{case.name}.nc"
 t = time.perf_counter()
 def prog(s):
