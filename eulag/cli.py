@@ -173,8 +173,9 @@ def _progress_bar(case, total: int):
 def cmd_run(args) -> int:
     """Run a case through the run layer (eulag.runs) and print its summary and verdict.
 
-    Exit status 0: converged (or a finished run reused with --resume); 1: failed, or stopped
-    unconverged (the failing criterion with its value and threshold on stderr); 2: bad input."""
+    Exit status 0: converged (or a converged finished run reused with --resume); 1: failed, or
+    stopped unconverged, also when --resume finds such a finished run (the failing criterion with
+    its value and threshold on stderr); 2: bad input."""
     from eulag import runs
 
     case = _load_case(args)
@@ -227,6 +228,8 @@ def cmd_run(args) -> int:
     if result.reused:
         if not args.quiet:
             print(f"{out}: already a finished run of case {case.name}; nothing to do")
+        if not result.converged:  # a finished run that ended unconverged keeps its verdict
+            raise _Fail(f"{result.stop_reason}; {out} holds this case's finished run with converged = false")
         return EXIT_OK
     if not args.quiet:
         if result.loop is not None:

@@ -351,7 +351,7 @@ def _single_phase(case: Case, out: Path | None, *, resume: bool, gas_progress: b
     from eulag.coupling import build_mesh
     from eulag.output import gas_dataset, write_dataset
 
-    if resume and out is not None and finished_run(out, case):
+    if resume and out is not None and dataset_state(out, case) is not None:
         return _reused(case, out)
     t_start = time.perf_counter()
     timings = {}
@@ -389,7 +389,9 @@ def _coupled(case: Case, out: Path | None, *, resume: bool, progress, notify, tr
     t_start = time.perf_counter()
     ckpt = checkpoint_path(out, case) if out is not None else None
     if ckpt is not None:
-        if resume and not ckpt.exists() and finished_run(out, case):
+        if resume and not ckpt.exists() and dataset_state(out, case) is not None:
+            # a finished run of this case, converged or not: running it again gives the same
+            # (the studies and the sweep take it as finished too)
             return _reused(case, out)
         if not resume and ckpt.exists():
             ckpt.unlink()  # a fresh run starts from scratch
@@ -414,6 +416,8 @@ def _execute_other(case: ModelCase, out, *, resume: bool, progress) -> RunResult
     and ``stop_reason`` attributes give the verdict)."""
     _, _, runner = _DENSE[case.model]
     out = Path(out) if out is not None else None
+    # (only a converged one: a slug dataset is judged again by today's rules, and one stored
+    # before a rule existed that it breaks is run again)
     if resume and out is not None and not checkpoint_path(out, case).exists() and finished_run(out, case):
         return _reused(case, out)
     try:

@@ -994,3 +994,42 @@ def test_a_final_pass_whose_own_solve_fails_is_named_in_the_dataset(tmp_path, mo
     clean = run(small_case(), tmp_path / "clean.nc")
     assert "replica_solve_failures" not in clean.attrs
     assert "failed" not in clean["replica_pressure_gradient"].attrs["long_name"]
+
+
+def test_resume_takes_a_finished_unconverged_run_whose_checkpoint_is_gone_as_finished(tmp_path, monkeypatch, capsys):
+    """--resume on an output that holds this case's finished run reuses it whether it converged
+    or not (running it again gives the same; the studies and the sweep take it as finished
+    too): without its checkpoint nothing is computed again, and the verdict stays not converged
+    (the CLI's exit status 1)."""
+    from pathlib import Path
+
+    from eulag.cli import main
+    from eulag.runs import execute
+
+    case = small_case(**{"numerics.coupling_tolerance": 0.001})  # cannot converge in 6 passes
+    out = tmp_path / "out.nc"
+    first = execute(case, out)
+    assert not first.converged and first.stop_reason.startswith("not converged")
+    Path(str(out) + ".checkpoint").unlink()
+
+    def recompute(self):
+        raise AssertionError("a finished run was computed again")
+
+    monkeypatch.setattr(CouplingLoop, "run", recompute)
+    again = execute(case, out, resume=True)
+    assert again.reused and not again.converged and again.stop_reason == first.stop_reason
+    data_vars_equal(first.dataset, again.dataset)
+
+    lines = [f"name = \"{case.name}\""]
+    for section, values in SMALL.items():
+        if isinstance(values, dict):
+            lines.append(f"[{section}]")
+            for k, v in values.items():
+                lines.append(f"{k} = {json.dumps(v)}")
+    lines.append("coupling_tolerance = 0.001")
+    toml = tmp_path / "small.toml"
+    toml.write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    status = main(["run", str(toml), "-o", str(out), "--resume", "--quiet"])
+    err = capsys.readouterr().err
+    assert status == 1 and "converged = false" in err and "not converged" in err, err
