@@ -300,7 +300,9 @@ def _reused(case, out: Path) -> RunResult:
 
         converged, reason = verdict(ds)
     else:
-        converged, reason = is_converged(ds), ds.attrs.get("stop_reason", "converged")
+        converged = is_converged(ds)
+        reason = ds.attrs.get("stop_reason", "converged" if converged else
+                              "not converged (the stored dataset says converged = false)")
     return RunResult(case, out, ds, converged, reason, reused=True)
 
 
