@@ -15,6 +15,8 @@ numba.set_num_threads(1)
 ak_of = {"quarter": lambda a: a / 4, "cap075": lambda a: min(a, 0.075), "same": lambda a: a, "fixed075": lambda a: 0.075}[mode]
 
 def relax(self, comp, sample, alpha):
+    # eulag.coupling.CouplingLoop._relax with S_k blended at alpha_k and the k part of the
+    # residual measured against alpha_k's noise (a modified copy: trial code)
     prev = self.sources
     shape = self.mesh.shape
     ak = ak_of(alpha)
