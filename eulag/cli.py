@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 import eulag
-from eulag.config import Case, CaseError
+from eulag.config import CASES_DIR, Case, CaseError
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -457,7 +457,7 @@ def cmd_cases(args) -> int:
             text = getattr(case, "description", None) or getattr(case, "data", {}).get("description", "")
         except runs.RunError as exc:
             text = f"(invalid: {exc})"
-        rows.append((name, str(path.relative_to(runs.CASES_DIR)), " ".join(str(text).split())))
+        rows.append((name, str(path.relative_to(CASES_DIR)), " ".join(str(text).split())))
     w0 = max(len(r[0]) for r in rows)
     w1 = max(len(r[1]) for r in rows)
     for name, rel, text in rows:

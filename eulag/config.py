@@ -52,6 +52,12 @@ __all__ = [
 
 #: directory of the case files shipped with eulag (the ``cases`` package)
 CASES_DIR = Path(__file__).resolve().parent.parent / "cases"
+#: Most parcels per pass (and per batch): 10⁹ parcels of the base case would take weeks, and
+#: parcel ids stay far from the int64 range.
+MAX_PARCELS = 1_000_000_000
+#: Most cells of a mesh (numerics.axial_cells × radial_cells × azimuthal_cells): about 50 GB of
+#: gas and sampling arrays, far beyond a workstation; the studies use 320,000.
+MAX_CELLS = 100_000_000
 
 
 class CaseError(ValueError):
@@ -153,6 +159,18 @@ def _check_bounds(key: str, value: Any, shown: Any, meta: dict) -> None:
             raise _error(key, shown, "out of range", _allowed(meta))
 
 
+def _as_float(key: str, value: Any, meta: dict) -> float:
+    try:
+        return float(value)
+    except OverflowError:  # an integer beyond the range of a double
+        raise _error(key, _short(value), "too large for a floating-point number", _allowed(meta)) from None
+
+
+def _short(value: Any) -> str:
+    text = str(value)
+    return text if len(text) <= 24 else f"{text[:12]}...({len(text)} digits)"
+
+
 def _check_value(key: str, value: Any, meta: dict) -> Any:
     """Validate one value against its field rule; return it normalised (int->float, list->tuple)."""
     kind = meta["kind"]
@@ -163,7 +181,7 @@ def _check_value(key: str, value: Any, meta: dict) -> Any:
     if kind == NUMBER:
         if not _is_number(value):
             raise _error(key, value, f"wrong type ({_type_name(value)})", _allowed(meta))
-        shown, value = value, float(value)
+        shown, value = value, _as_float(key, value, meta)
         _check_bounds(key, value, shown, meta)
     elif kind == INTEGER:
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
@@ -183,7 +201,7 @@ def _check_value(key: str, value: Any, meta: dict) -> Any:
     elif kind == NUMBERS:
         if not isinstance(value, (list, tuple)) or not all(_is_number(v) for v in value):
             raise _error(key, value, f"wrong type ({_type_name(value)})", _allowed(meta))
-        shown, value = list(value), tuple(float(v) for v in value)
+        shown, value = list(value), tuple(_as_float(key, v, meta) for v in value)
         if len(value) < meta["min_items"]:
             raise _error(key, shown, "too few values", _allowed(meta))
         for v in value:
@@ -662,28 +680,30 @@ class NumericsConfig(_Section):
     section: ClassVar[str] = "numerics"
 
     axial_cells: int = _param(INTEGER, "axial stations; ignored in periodic mode", default=400,
-                              ge=10)
-    radial_cells: int = _param(INTEGER, "radial rings", default=20, ge=4)
+                              ge=10, le=100_000)
+    radial_cells: int = _param(INTEGER, "radial rings", default=20, ge=4, le=1_000)
     azimuthal_cells: int = _param(INTEGER, "azimuthal sectors, mirror-symmetric mesh",
-                                  default=40, ge=8, even=True)
+                                  default=40, ge=8, le=4_000, even=True)
     first_cell_yplus: float = _param(NUMBER, "target y+ of the wall cell, log-law region",
                                      default=30.0, gt=11.53, le=500.0)
-    parcels: int = _param(INTEGER, "parcels per pass in the final passes", default=240000, ge=1)
+    parcels: int = _param(INTEGER, "parcels per pass in the final passes", default=240000, ge=1,
+                          le=MAX_PARCELS)
     parcels_start: int | None = _param(INTEGER, "parcels per pass earlier, <= numerics.parcels",
-                                       default=None, ge=1)
+                                       default=None, ge=1, le=MAX_PARCELS)
     average_passes: int = _param(INTEGER, "passes averaged, <= numerics.max_passes", default=3,
                                  ge=1)
     step_rule: str = _param(STRING, "particle time-step rule", default="default",
                             choices=("default", "paper"))
     relaxation: float = _param(NUMBER, "source under-relaxation factor", default=0.3, ge=0.05,
                                le=1.0)
-    max_passes: int = _param(INTEGER, "maximum coupling passes", default=40, ge=1)
+    max_passes: int = _param(INTEGER, "maximum coupling passes", default=40, ge=1, le=10_000)
     seed: int = _param(INTEGER, "random seed", default=1, ge=0, lt=2 ** 63)
     gas_tolerance: float = _param(NUMBER, "gas-solver residual tolerance", default=1e-6, gt=0.0,
                                   le=0.1)
-    gas_max_iterations: int = _param(INTEGER, "gas-solver iteration cap", default=3000, ge=1)
+    gas_max_iterations: int = _param(INTEGER, "gas-solver iteration cap", default=3000, ge=1,
+                                     le=10_000_000)
     gas_iterations_per_pass: int = _param(INTEGER, "periodic gas iterations per coupling pass",
-                                          default=300, ge=1)
+                                          default=300, ge=1, le=10_000_000)
     gas_station_retries: str = _param(STRING, "when the developing gas march retries a stalled "
                                       "station (coupled step, more relaxation, extension): "
                                       "in every coupled solve, or only once the coupling residual "
@@ -694,8 +714,9 @@ class NumericsConfig(_Section):
                                                gt=0.0, le=0.1, optional=True,
                                                none_label="numerics.gas_tolerance")
     step_factor: float = _param(NUMBER, "particle time-step factor", default=0.5, gt=0.0, le=1.0)
-    batch_size: int = _param(INTEGER, "parcels per batch", default=4096, ge=1)
-    batches_per_superbatch: int = _param(INTEGER, "batches per super-batch", default=8, ge=1)
+    batch_size: int = _param(INTEGER, "parcels per batch", default=4096, ge=1, le=MAX_PARCELS)
+    batches_per_superbatch: int = _param(INTEGER, "batches per super-batch", default=8, ge=1,
+                                         le=100_000)
     coupling_tolerance: float = _param(NUMBER, "coupling residual tolerance (noise units)",
                                        default=1.5, gt=0.0, le=1000.0)
     residence_cap: float | None = _param(NUMBER, "parcel residence-time cap", unit="s",
@@ -719,6 +740,11 @@ class NumericsConfig(_Section):
         if self.average_passes > self.max_passes:
             raise _error("numerics.average_passes", self.average_passes, "out of range",
                          f"an integer >= 1 and <= numerics.max_passes = {self.max_passes}")
+        cells = self.axial_cells * self.radial_cells * self.azimuthal_cells
+        if cells > MAX_CELLS:
+            raise CaseError(f"numerics.axial_cells x radial_cells x azimuthal_cells = {self.axial_cells} x "
+                            f"{self.radial_cells} x {self.azimuthal_cells} = {cells:,} cells: out of range; "
+                            f"allowed: at most {MAX_CELLS:,} cells")
 
 
 # ---------------------------------------------------------------------------
@@ -791,6 +817,9 @@ def comparable_attrs(attrs: dict) -> dict:
     return {k: v for k, v in attrs.items() if not (k in LATER_KEYS and v == LATER_KEYS[k])}
 
 
+#: Bulk Reynolds numbers rho U0 D / mu an Euler–Lagrange case may have: turbulent pipe flow, for
+#: which the k-ε model with wall functions is meant (the validation runs 1.2·10⁴ to 10⁶).
+REYNOLDS_RANGE = (4.0e3, 1.0e8)
 _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
 _NAME_ALLOWED = ("a string of letters, digits, _ . + - starting with a letter or digit, "
                  "at most 100 characters (used as the output file name)")
@@ -827,12 +856,7 @@ class Case:
     source: str | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self):
-        if not isinstance(self.name, str) or not _NAME_RE.fullmatch(self.name):
-            raise CaseError(f"name = {_fmt(self.name)}: not a valid case name; allowed: "
-                            + _NAME_ALLOWED)
-        if not isinstance(self.description, str):
-            raise CaseError(f"description = {_fmt(self.description)}: wrong type "
-                            f"({_type_name(self.description)}); allowed: a string")
+        check_name_and_description(self.name, self.description)
         for key, cls in _SECTIONS.items():
             value = getattr(self, key)
             if value is None and key == "particles":
@@ -849,6 +873,29 @@ class Case:
                 raise _error("particles.density", p.density, "out of range",
                              f"a number > gas.density = {_num(self.gas.density)} and <= 25000 "
                              "(particle density, kg m-3)")
+        self._check_flow_and_wall_cell()
+
+    def _check_flow_and_wall_cell(self):
+        """The bulk Reynolds number within the turbulent range of the k-ε model with wall
+        functions, and a wall cell (its centre at numerics.first_cell_yplus) that fits the pipe:
+        values each within its own range can still clash (a wall cell wider than the radius)."""
+        g, d = self.gas, self.pipe.diameter
+        re = g.density * g.bulk_velocity * d / g.viscosity
+        given = (f"gas.density = {_num(g.density)}, gas.bulk_velocity = {_num(g.bulk_velocity)}, "
+                 f"pipe.diameter = {_num(d)}, gas.viscosity = {_num(g.viscosity)}")
+        if not (REYNOLDS_RANGE[0] <= re <= REYNOLDS_RANGE[1]):
+            raise CaseError(f"Re = rho U0 D / mu = {re:.4g} ({given}): out of range; allowed: "
+                            f"{REYNOLDS_RANGE[0]:g} <= Re <= {REYNOLDS_RANGE[1]:g} (turbulent pipe flow, "
+                            "k-epsilon with wall functions)")
+        from rans.mesh import wall_cell_thickness
+
+        yplus = self.numerics.first_cell_yplus
+        thickness, _ = wall_cell_thickness(d, yplus, g.bulk_velocity, g.density, g.viscosity)
+        if not (0.0 < thickness < 0.5 * d):
+            raise _error("numerics.first_cell_yplus", yplus, "out of range",
+                         f"a y+ whose wall cell fits the pipe: at Re = {re:.4g} ({given}) the wall cell "
+                         f"would be {thickness:.3g} m thick in a pipe of radius {_num(0.5 * d)} m; lower "
+                         "numerics.first_cell_yplus or raise the Reynolds number")
 
     # -- construction -------------------------------------------------------
 
@@ -915,11 +962,23 @@ class Case:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise CaseError(f"{path}: not valid TOML ({exc})") from None
-        case = cls.from_dict(data, name=_name_from_stem(path.stem), source=str(path))
+        case = cls.from_dict(data, name=name_from_stem(path.stem), source=str(path))
         ref = case.pipe.reference_data
-        if ref is not None and case.reference_data_path() is None:
-            raise _error("pipe.reference_data", ref, "no such file",
-                         f"a file relative to {path.parent or '.'}/ or to {CASES_DIR}/")
+        if ref is not None:
+            found = case.reference_data_path()
+            if found is None:
+                raise _error("pipe.reference_data", ref, "no such file",
+                             f"a file relative to {path.parent or '.'}/ or to {CASES_DIR}/")
+            import csv
+
+            from eulag.reference import read_reference  # read now: a coupled run would find out after hours
+
+            try:
+                read_reference(found)
+            except (OSError, UnicodeDecodeError, ValueError, KeyError, csv.Error) as exc:
+                raise _error("pipe.reference_data", ref, f"cannot be read as reference profiles ({exc})",
+                             "a CSV file with a column y_over_R or y_over_D and a velocity column "
+                             "(docs/case-reference.md)") from None
         return case
 
     @classmethod
@@ -1081,7 +1140,17 @@ def packaged_cases() -> dict[str, Path]:
     return {p.stem: p for p in sorted(CASES_DIR.rglob("*.toml"))}
 
 
-def _name_from_stem(stem: str) -> str:
+def check_name_and_description(name: Any, description: Any = "") -> None:
+    """The top-level ``name`` and ``description`` rules of every model's case file (the name
+    becomes the output file's name); CaseError with one line otherwise."""
+    if not isinstance(name, str) or not _NAME_RE.fullmatch(name):
+        raise CaseError(f"name = {_fmt(name)}: not a valid case name; allowed: " + _NAME_ALLOWED)
+    if not isinstance(description, str):
+        raise CaseError(f"description = {_fmt(description)}: wrong type ({_type_name(description)}); "
+                        "allowed: a string")
+
+
+def name_from_stem(stem: str) -> str:
     """A valid case name from a file stem (invalid characters become '_')."""
     name = re.sub(r"[^A-Za-z0-9_.+-]", "_", stem)[:100]
     return name if name and name[0].isalnum() else ("case_" + name)[:100]
@@ -1155,7 +1224,8 @@ def resolved_case_lines(case: dict, model: str, source, rows) -> list[str]:
     value as TOML writes it, the unit in brackets, "(default)" where the file does not set it."""
     import json
 
-    lines = [f"case {case.get('name', '')}" + (f" ({source})" if source else "") + f": model {model}", "",
+    name = case.get("name") or (name_from_stem(Path(source).stem) if source else "")
+    lines = [f"case {name}" + (f" ({source})" if source else "") + f": model {model}", "",
              "Case (every key; '(default)': the key's default)"]
     for k in ("name", "description"):
         if k in case:

@@ -19,7 +19,6 @@ state, nothing left open. Sections are drawn as seen looking downstream (z right
 
 from __future__ import annotations
 
-import csv
 import os
 import shutil
 import tempfile
@@ -35,6 +34,7 @@ from matplotlib.ticker import MaxNLocator, NullFormatter
 from matplotlib.tri import Triangulation
 
 from eulag import analysis as an
+from eulag.reference import read_reference, table_to_profiles
 
 __all__ = ["dataset_problem", "three_panel", "vertical_profiles", "convergence", "plot_all", "read_reference",
            "resolve_reference", "default_station", "slug_spacetime", "slug_history",
@@ -220,45 +220,6 @@ def three_panel(ds: xr.Dataset, x: float | None, path) -> Path:
 # vertical profiles and reference data
 # ---------------------------------------------------------------------------
 
-_Y_COLUMNS = {"y_over_D": 1.0, "y_over_R": 0.5}   # column -> factor to y/D
-_U_COLUMNS = ("u_over_ub", "U_over_Ub", "U_over_Uref", "u")
-
-
-def read_reference(path) -> dict[str, dict[str, np.ndarray]]:
-    """Measured profiles from a commented CSV file (lines starting with '#' are skipped).
-
-    Columns: ``phase`` (gas / particle; absent: gas), ``y_over_R`` or ``y_over_D``, and the
-    normalised axial velocity ``U_over_Uref`` (or ``u_over_ub``). Returns
-    ``{phase: {"y_over_D": array [1], "u": array [1], "column": name of the velocity column}}``.
-    The file's header comments state the provenance and the velocity scale; read them.
-    """
-    path = Path(path)
-    with open(path, newline="") as fh:
-        lines = fh.readlines()
-    rows = list(csv.DictReader([ln for ln in lines if not ln.lstrip().startswith("#")]))
-    if not rows:
-        raise ValueError(f"{path}: no data rows")
-    table = {key: [row[key] for row in rows] for key in rows[0]}
-    return _table_to_profiles(table, str(path))
-
-
-def _table_to_profiles(table: Mapping[str, Any], where: str) -> dict[str, dict[str, np.ndarray]]:
-    """{phase: {"y_over_D", "u"}} from a table (dict of equal-length columns)."""
-    ycol = next((c for c in _Y_COLUMNS if c in table), None)
-    ucol = next((c for c in _U_COLUMNS if c in table), None)
-    if ycol is None or ucol is None:
-        raise ValueError(f"{where}: reference data need a column y_over_R or y_over_D and one of "
-                         f"{', '.join(_U_COLUMNS)}; found {', '.join(table)}")
-    y = np.asarray(table[ycol], dtype=float) * _Y_COLUMNS[ycol]
-    u = np.asarray(table[ucol], dtype=float)
-    phase = np.asarray(table["phase"], dtype=str) if "phase" in table else np.full(y.size, "gas")
-    out = {}
-    for name in np.unique(phase):
-        sel = phase == name
-        out[str(name)] = {"y_over_D": y[sel], "u": u[sel], "column": ucol}
-    return out
-
-
 def _reference_profiles(reference) -> dict[str, dict[str, np.ndarray]]:
     """Normalise ``reference``: a CSV path, a table (dict of columns), or {phase: table}."""
     if isinstance(reference, (str, os.PathLike)):
@@ -268,9 +229,9 @@ def _reference_profiles(reference) -> dict[str, dict[str, np.ndarray]]:
     if all(isinstance(v, Mapping) for v in reference.values()):
         out = {}
         for phase, table in reference.items():
-            out.update({phase: p for p in _table_to_profiles(table, f"reference[{phase!r}]").values()})
+            out.update({phase: p for p in table_to_profiles(table, f"reference[{phase!r}]").values()})
         return out
-    return _table_to_profiles(reference, "reference")
+    return table_to_profiles(reference, "reference")
 
 
 def resolve_reference(ds: xr.Dataset, dataset_path=None) -> Path | None:

@@ -29,7 +29,7 @@ from dataclasses import field as _field
 from pathlib import Path
 from typing import Any, Callable
 
-from eulag.config import Case, CaseError, packaged_cases
+from eulag.config import Case, CaseError, check_name_and_description, name_from_stem, packaged_cases
 
 __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
            "output_path", "finished_run", "dataset_state", "same_case", "case_key", "checkpoint_path", "checkpoint_state", "execute", "run", "with_parcels"]
@@ -139,14 +139,15 @@ def load_case(spec: str | Path, *, parcels: int | None = None):
         data = tomllib.loads(path.read_bytes().decode("utf-8"))
         try:
             getattr(_model_module(model), validate)(data)
-        except (CaseError, ValueError, KeyError, TypeError) as exc:
+            # the name rule of every model: the name becomes the output file's name
+            check_name_and_description(data.get("name", name_from_stem(path.stem)), data.get("description", ""))
+        except (CaseError, ValueError, KeyError, TypeError, OverflowError) as exc:
             raise BadInput(" ".join(str(exc).split())) from None
-        return ModelCase(model, str(data.get("name", path.stem)), data, path)
+        return ModelCase(model, str(data.get("name", name_from_stem(path.stem))), data, path)
     try:
-        case = Case.from_toml(path)
+        return with_parcels(Case.from_toml(path), parcels)
     except CaseError as exc:
         raise BadInput(str(exc)) from None
-    return with_parcels(case, parcels)
 
 
 def with_parcels(case: Case, parcels: int | None) -> Case:
@@ -155,7 +156,10 @@ def with_parcels(case: Case, parcels: int | None) -> Case:
     if parcels is None:
         return case
     n = case.numerics
-    return case.replace(numerics={"parcels": int(parcels), "parcels_start": min(n.parcels_start, int(parcels))})
+    try:
+        return case.replace(numerics={"parcels": int(parcels), "parcels_start": min(n.parcels_start, int(parcels))})
+    except CaseError as exc:
+        raise CaseError(f"--parcels {parcels}: {exc}") from None
 
 
 def model_check_report(case: ModelCase) -> str:
@@ -178,9 +182,19 @@ def output_path(out: str | Path | None, name: str) -> Path:
     """The output file (``<name>.nc`` by default), checked to be writable before any work."""
     import os
 
+    if out is not None and not str(out).strip():
+        raise BadInput("-o '': an empty path; allowed: a NetCDF file path ending in .nc")
     out = Path(out) if out else Path(f"{name}.nc")
+    if out.is_symlink():
+        raise BadInput(f"-o {out}: is a symbolic link (the output is written to a temporary file and "
+                       "renamed, which would replace the link); allowed: a regular file path")
     if out.exists() and out.is_dir():
         raise BadInput(f"-o {out}: is a directory; allowed: a file path")
+    if out.exists() and not out.is_file():
+        raise BadInput(f"-o {out}: exists and is not a regular file (a device, pipe or socket); "
+                       "allowed: a regular file path")
+    if out.suffix != ".nc":
+        raise BadInput(f"-o {out}: not a NetCDF file name; allowed: a path ending in .nc")
     parent = out.parent if str(out.parent) else Path(".")
     if not parent.is_dir():
         raise BadInput(f"-o {out}: directory {parent} does not exist; allowed: a path in an existing directory")

@@ -98,6 +98,9 @@ _CHOICES = {("tube", "orientation"): ("horizontal", "vertical"), ("gas", "inlet"
             ("numerics", "grain_interpolation"): ("normalised", "printed")}
 _INTS = {("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "steps_per_contact"),
          ("numerics", "seed"), ("numerics", "cross_section_pixels")}
+#: Largest values of the integers (numerics.seed: any int64 >= 0; the others at most 10⁷): the gas
+#: grid of the paper has 150 x 2 x 2 nodes.
+_INT_MAX = {"cells_x": 100_000, "cells_across": 64}
 _BOOLS = {("tube", "periodic"), ("numerics", "parallel")}
 _STRINGS = {("initial", "state")}
 # (low, high, low inclusive?) for the numbers
@@ -168,6 +171,14 @@ def dem_steps(t_contact, steps_per_contact, gas_dt):
     return n, gas_dt / n
 
 
+def _finite(v) -> bool:
+    """Whether the number v is finite as a double (an integer beyond its range is not)."""
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
+
+
 def _bad(sec, key, val, allowed):
     return ValueError(f"{sec}.{key} = {val!r}: allowed {allowed}")
 
@@ -204,11 +215,13 @@ def validate_slug_case(case: dict) -> dict:
                 if v not in _CHOICES[sec, k]:
                     raise _bad(sec, k, v, " | ".join(repr(c) for c in _CHOICES[sec, k]))
             elif (sec, k) in _INTS:
-                if isinstance(v, bool) or not isinstance(v, int) or v < (0 if k == "seed" else 1):
-                    raise _bad(sec, k, v, "an integer >= " + ("0" if k == "seed" else "1"))
+                lo, hi = (0, 2 ** 63 - 1) if k == "seed" else (1, _INT_MAX.get(k, 10 ** 7))
+                if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                    raise _bad(sec, k, v, f"an integer >= {lo} and <= {hi}")
             else:
-                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                    raise _bad(sec, k, v, "a finite number")
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
+                    raise _bad(sec, k, v if not isinstance(v, int) or _finite(v) else f"{str(v)[:12]}...",
+                               "a finite number")
                 v = float(v)
                 lo, hi, inc = _RANGES.get((sec, k), (0.0, math.inf, False))
                 if not ((v >= lo if inc else v > lo) and v <= hi):

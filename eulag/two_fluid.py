@@ -42,7 +42,10 @@ def _num(lo=None, hi=None, lo_open=True, integer=False, even=False):
     def check(v):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
             return False
-        if not math.isfinite(v):
+        try:
+            if not math.isfinite(v):
+                return False
+        except OverflowError:  # an integer beyond the range of a double
             return False
         if lo is not None and (v <= lo if lo_open else v < lo):
             return False
@@ -101,7 +104,8 @@ _TOP = ("name", "description", "model")
 
 
 def _fmt(v):
-    return json.dumps(v) if isinstance(v, str) else repr(v)
+    text = json.dumps(v) if isinstance(v, str) else repr(v)
+    return text if len(text) <= 60 else f"{text[:24]}...({len(text)} characters)"
 
 
 def resolved_case(case: dict) -> dict:
@@ -151,6 +155,14 @@ def validate_two_fluid_case(case: dict) -> None:
                          f"numerics.first_step_diameters ({first!r})")
     if "experiment" in case and not isinstance(case["experiment"], dict):
         raise ValueError(f"experiment = {_fmt(case['experiment'])}: allowed a table")
+    # values each within their own range that clash (as the Euler-Lagrange cases check them)
+    gas, solids, pipe = case["gas"], case["solids"], case["pipe"]
+    if not solids["density"] > gas["density"]:
+        raise ValueError(f"solids.density = {_fmt(solids['density'])}: allowed a number > gas.density "
+                         f"({_fmt(gas['density'])}): particles heavier than the gas")
+    if not solids["diameter"] < 0.2 * pipe["diameter"]:
+        raise ValueError(f"solids.diameter = {_fmt(solids['diameter'])}: allowed a number < pipe.diameter / 5 "
+                         f"({0.2 * pipe['diameter']:g}): a continuum of particles much smaller than the pipe")
 
 
 _CHECK_UNITS = {("pipe", "diameter"): "m", ("pipe", "length"): "m", ("gas", "density"): "kg m-3",

@@ -55,6 +55,17 @@ def _wall_cell_thickness(radius, y_wall):
     return float(d)
 
 
+def wall_cell_thickness(diameter, first_cell_yplus, bulk_velocity, density, viscosity):
+    """(thickness [m], u_tau [m/s]) of the wall ring whose centre sits at ``first_cell_yplus``,
+    with the friction velocity of Colebrook's smooth-pipe Darcy factor at Re = rho U D / mu,
+    u_tau = U sqrt(f_D / 8) (``PipeMesh.build``; the case check uses it before any mesh is built)."""
+    re = density * bulk_velocity * diameter / viscosity
+    f_d = Colebrook(re, 0.0)
+    u_tau = bulk_velocity * math.sqrt(f_d / 8.0)
+    y_wall = first_cell_yplus * viscosity / (density * u_tau)
+    return _wall_cell_thickness(0.5 * diameter, y_wall), u_tau
+
+
 def radial_edges(radius, radial_cells, wall_thickness):
     """Ring edges 0 = r_0 < ... < r_n = R with a wall ring of the given thickness [m].
 
@@ -191,11 +202,7 @@ class PipeMesh:
         if azimuthal_cells < 4 or azimuthal_cells % 2:
             raise ValueError(f"azimuthal_cells = {azimuthal_cells}: an even number >= 4 is needed")
         radius = 0.5 * diameter
-        re = density * bulk_velocity * diameter / viscosity
-        f_d = Colebrook(re, 0.0)
-        u_tau = bulk_velocity * math.sqrt(f_d / 8.0)
-        y_wall = first_cell_yplus * viscosity / (density * u_tau)
-        wall = _wall_cell_thickness(radius, y_wall)
+        wall, u_tau = wall_cell_thickness(diameter, first_cell_yplus, bulk_velocity, density, viscosity)
         r_edges = radial_edges(radius, radial_cells, wall)
         nx = 1 if mode == "periodic" else int(axial_cells)
         x_edges = np.linspace(0.0, length, nx + 1)

@@ -3,6 +3,7 @@ single-phase run writes a dataset that passes the schema check."""
 
 import math
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -283,3 +284,101 @@ def test_check_of_a_two_fluid_case_prints_the_resolved_case_and_its_numbers(caps
     f_h = (-1.8 * math.log10(6.9 / (rho * U * D / mu))) ** -2
     dpdx = float(re.search(r"-dp/dx = ([0-9.e+]+) \[Pa m-1\]", out).group(1))
     assert dpdx == pytest.approx(f_h * rho * U * U / (2 * D), rel=0.03)
+
+
+def test_cases_lists_every_packaged_case_with_its_file(capsys):
+    status, out, err = run_cli(capsys, "cases")
+    assert status == 0, err
+    for path in sorted((ROOT / "cases").rglob("*.toml")):
+        line = next((ln for ln in out.splitlines() if ln.split()[:1] == [path.stem]), None)
+        assert line is not None, path
+        assert str(path.relative_to(ROOT / "cases")) in line
+
+
+def test_output_that_is_not_a_regular_nc_file_is_refused_and_left_alone(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    case = tmp_path / "tiny.toml"
+    case.write_text(TINY)
+    os.mkfifo(tmp_path / "pipe.nc")
+    (tmp_path / "link.nc").symlink_to(tmp_path / "target.nc")
+    for out, what in ((case, "ending in .nc"), (tmp_path / "result.txt", "ending in .nc"),
+                      (tmp_path / "pipe.nc", "not a regular file"), (tmp_path / "link.nc", "symbolic link"),
+                      ("", "empty path")):
+        status, stdout, err = run_cli(capsys, "run", case, "-o", out)
+        assert status == 2 and len(err.splitlines()) == 1 and what in err, (out, err)
+    assert case.read_text() == TINY
+    assert (tmp_path / "pipe.nc").is_fifo() and (tmp_path / "link.nc").is_symlink()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.nc", "pipe.nc", "tiny.toml"]
+
+
+@pytest.mark.parametrize("old, new, key", [
+    # each value within its own range; together a Reynolds number of 367 (laminar)
+    ("viscosity = 1.81e-5", "viscosity = 1e-3", "Re = rho U0 D / mu = 367.5"),
+    ("density = 1.205", "density = 1e-300", "Re = rho U0 D / mu"),
+    # a wall cell (its centre at y+ = 500) thicker than the radius at U0 = 2 m/s
+    ("bulk_velocity = 10.0\ninlet_k = 1.0\n\n[numerics]", "bulk_velocity = 2.0\ninlet_k = 0.04\n\n[numerics]\n"
+     "first_cell_yplus = 500", "numerics.first_cell_yplus = 500"),
+    ("diameter = 0.0305", "diameter = 1" + "0" * 400, "pipe.diameter = "),
+    ("radial_cells = 8\nazimuthal_cells = 16", "radial_cells = 1000\nazimuthal_cells = 4000",
+     "numerics.axial_cells x radial_cells x azimuthal_cells"),
+])
+def test_values_that_clash_or_overflow_are_bad_input_naming_the_keys(tmp_path, capsys, old, new, key):
+    assert old in TINY
+    case = tmp_path / "clash.toml"
+    case.write_text(TINY.replace(old, new))
+    status, out, err = run_cli(capsys, "check", case)
+    assert status == 2, (status, err)
+    assert len(err.splitlines()) == 1 and err.startswith(f"eulag: error: {key}"), err
+    assert "allowed" in err and len(err) < 600
+
+
+def test_parcels_beyond_the_cap_are_bad_input(tmp_path, capsys):
+    case = tmp_path / "tiny.toml"
+    case.write_text(TINY)
+    status, out, err = run_cli(capsys, "check", ROOT / "cases" / "tsuji_morikawa_200um.toml")
+    assert status == 0
+    status, out, err = run_cli(capsys, "run", ROOT / "cases" / "tsuji_morikawa_200um.toml",
+                               "--parcels", "9" * 23, "-o", tmp_path / "x.nc")
+    assert status == 2 and len(err.splitlines()) == 1 and "--parcels" in err and "<= 1000000000" in err
+    assert list(tmp_path.iterdir()) == [case]
+
+
+def test_dense_model_cases_follow_the_name_rule_and_their_cross_checks(tmp_path, capsys):
+    slug = (ROOT / "cases" / "slug" / "periodic_slug.toml").read_text()
+    tf = (ROOT / "cases" / "two_fluid" / "ding_qs0.8.toml").read_text()
+    bad = {
+        "slug_path": re.sub(r'(?m)^name = .*$', 'name = "a/b"', slug),
+        "tf_escape": re.sub(r'(?m)^name = .*$', 'name = "../escape"', tf),
+        "tf_empty": re.sub(r'(?m)^name = .*$', 'name = ""', tf),
+        # solids lighter than the gas
+        "tf_light": re.sub(r'(?ms)(\[solids\][^\[]*?)^density = [^\n]*', r'\1density = 1.0', tf),
+        "slug_huge": re.sub(r'(?m)^length_m = .*$', "length_m = 1" + "0" * 400, slug),
+    }
+    expected = {"slug_path": 'name = "a/b"', "tf_escape": 'name = "../escape"', "tf_empty": 'name = ""',
+                "tf_light": "solids.density = 1.0", "slug_huge": "tube.length_m = "}
+    for label, text in bad.items():
+        path = tmp_path / f"{label}.toml"
+        path.write_text(text)
+        for verb in ("check", "run"):
+            status, out, err = run_cli(capsys, verb, path, *(["-o", tmp_path / "o.nc"] if verb == "run" else []))
+            assert status == 2, (label, verb, err)
+            assert len(err.splitlines()) == 1 and err.startswith(f"eulag: error: {expected[label]}"), (label, err)
+        path.unlink()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unreadable_reference_data_is_bad_input_when_the_case_is_read(tmp_path, capsys):
+    (tmp_path / "notes.csv").write_text("# not profiles\nname,value\na,1\n")
+    case = tmp_path / "ref.toml"
+    case.write_text(TINY.replace('mode = "periodic"', 'mode = "periodic"\nreference_data = "notes.csv"'))
+    status, out, err = run_cli(capsys, "check", case)
+    assert status == 2 and len(err.splitlines()) == 1, err
+    assert err.startswith('eulag: error: pipe.reference_data = "notes.csv": cannot be read'), err
+
+
+def test_a_study_with_a_bad_case_leaves_no_output_folder(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "empty.toml").write_text("")
+    status, out, err = run_cli(capsys, "study", "error-runtime", tmp_path / "empty.toml")
+    assert status == 2 and len(err.splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.toml"]

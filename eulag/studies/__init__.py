@@ -179,10 +179,16 @@ def _positive_int(text: str) -> int:
 def _entry(study: Callable) -> Callable:
     def func(args) -> int:
         t0 = time.perf_counter()
+        made = []  # the output folders this call creates: removed again, empty, on bad input
         try:
-            outdir = _output_dir(args)
+            outdir = _output_dir(args, made)
             return study(args, outdir, t0)
         except _BadInput as exc:
+            for folder in reversed(made):
+                try:
+                    folder.rmdir()  # only if still empty
+                except OSError:
+                    break
             print(f"eulag: error: {' '.join(str(exc).split())}", file=sys.stderr)
             return EXIT_BAD_INPUT
     return func

@@ -49,12 +49,16 @@ def _with_parcels(case: Case, parcels: int | None) -> Case:
     return with_parcels(case, parcels)
 
 
-def _output_dir(args) -> Path:
+def _output_dir(args, made: list | None = None) -> Path:
+    """The study's output folder, created if needed; the folders created are appended to
+    ``made`` (outermost first), so that bad input found later leaves nothing behind."""
     out = Path(args.output_dir) if args.output_dir else Path("results") / args.study_name
     if out.exists() and not out.is_dir():
         raise _BadInput(f"-o {out}: exists and is not a directory; allowed: a directory")
     if getattr(args, "report", False) and not out.is_dir():
         raise _BadInput(f"-o {out}: no such directory; --report reads the runs of an existing output folder")
+    if made is not None:
+        made.extend(p for p in reversed([out, *out.parents]) if str(p) not in ("", ".") and not p.exists())
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
