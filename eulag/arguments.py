@@ -1,10 +1,11 @@
-"""Argument types shared by the command-line front-ends (``eulag.cli``, ``eulag.studies``)."""
+"""Argument types and message helpers shared by the command-line front-ends (``eulag.cli``,
+``eulag.studies``, ``eulag.runs``)."""
 
 from __future__ import annotations
 
 import argparse
 
-__all__ = ["positive_int"]
+__all__ = ["positive_int", "short_reason"]
 
 
 def positive_int(text: str) -> int:
@@ -16,3 +17,11 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} is out of range; allowed: an integer >= 1")
     return value
+
+
+def short_reason(exc: BaseException, limit: int = 160) -> str:
+    """An exception's message for a one-line error: its first sentence on one line, at most
+    ``limit`` characters (xarray's "cannot open" error goes on with installation advice)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    head = text.split(". ")[0]
+    return head if len(head) <= limit else head[:limit - 3] + "..."

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import eulag
 from eulag.config import CASES_DIR, Case, CaseError
+from eulag.arguments import short_reason
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -465,18 +466,24 @@ def cmd_cases(args) -> int:
     return EXIT_OK
 
 
+def _check_dataset_path(path: Path) -> None:
+    if path.is_dir():
+        raise _Fail(f"{path}: is a directory; allowed: a dataset file (.nc)", EXIT_BAD_INPUT)
+    if not path.is_file():
+        raise _Fail(f"{path}: no such dataset file", EXIT_BAD_INPUT)
+
+
 def cmd_export(args) -> int:
     """A dataset's cell fields on the 3-D pipe as a VTK structured (.vts) or unstructured (.vtu)
     grid (eulag.export)."""
     from eulag import export
 
     src = Path(args.dataset)
-    if not src.is_file():
-        raise _Fail(f"{src}: no such dataset file", EXIT_BAD_INPUT)
+    _check_dataset_path(src)
     try:
         written = export.export_vts(src, Path(args.target))
     except (ValueError, export.ExportError) as exc:
-        raise _Fail(str(exc), EXIT_BAD_INPUT) from None
+        raise _Fail(" ".join(str(exc).split()), EXIT_BAD_INPUT) from None
     print(written if written is not None else args.target)
     return EXIT_OK
 
@@ -550,8 +557,7 @@ def cmd_plot(args) -> int:
     a directory) exits 2 before anything is drawn; the figures appear all together or not
     at all (eulag.plots.plot_all)."""
     path = Path(args.dataset)
-    if not path.is_file():
-        raise _Fail(f"{path}: no such dataset file", EXIT_BAD_INPUT)
+    _check_dataset_path(path)
     if args.output and Path(args.output).exists() and not Path(args.output).is_dir():
         raise _Fail(f"-o {args.output}: exists and is not a directory; allowed: a directory",
                     EXIT_BAD_INPUT)
@@ -563,7 +569,7 @@ def cmd_plot(args) -> int:
         with xr.open_dataset(path) as opened:
             ds = opened.load()
     except Exception as exc:
-        raise _Fail(f"{path}: cannot be read as a NetCDF dataset ({exc})", EXIT_BAD_INPUT) from None
+        raise _Fail(f"{path}: cannot be read as a NetCDF dataset ({short_reason(exc)})", EXIT_BAD_INPUT) from None
     problem = plots.dataset_problem(ds)
     if problem is not None:
         raise _Fail(f"{path}: {problem}", EXIT_BAD_INPUT)

@@ -231,8 +231,9 @@ def export_vts(dataset_path: str | os.PathLike, vts_path: str | os.PathLike) -> 
     try:
         ds = xr.open_dataset(dataset_path)
     except Exception as exc:  # noqa: BLE001 - any reader failure is a bad input
-        reason = " ".join(str(exc).split())
-        raise ExportError(f"{dataset_path}: cannot read the dataset ({reason})") from None
+        from eulag.arguments import short_reason
+
+        raise ExportError(f"{dataset_path}: cannot read the dataset ({short_reason(exc)})") from None
     with ds:
         if ds.attrs.get("model") == "dem-darcy":
             raise ExportError(f"{dataset_path}: a dem-darcy (slug) dataset holds cross-section means along the "

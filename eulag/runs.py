@@ -289,7 +289,10 @@ def dataset_state(out: str | Path, case) -> str | None:
             attrs = dict(ds.attrs)
             converged = is_converged(ds)
     except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
-        raise RunError(f"--resume: {out} exists but cannot be read ({exc})") from None
+        from eulag.arguments import short_reason
+
+        raise BadInput(f"--resume: {out} exists but cannot be read as a dataset ({short_reason(exc)}); allowed: "
+                       "this case's output, or a path that does not exist yet") from None
     if not same_case(attrs, case):
         raise BadInput(f"--resume: {out} holds a different case; allowed: the output of this case, "
                        "or run without --resume to overwrite")

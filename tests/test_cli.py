@@ -382,3 +382,20 @@ def test_a_study_with_a_bad_case_leaves_no_output_folder(tmp_path, monkeypatch, 
     status, out, err = run_cli(capsys, "study", "error-runtime", tmp_path / "empty.toml")
     assert status == 2 and len(err.splitlines()) == 1, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.toml"]
+
+
+def test_a_file_that_is_not_a_dataset_is_bad_input_in_one_short_line(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "notes.nc").write_text("not a dataset\n")
+    (tmp_path / "tiny.toml").write_text(TINY)
+    for argv, what in ((("plot", "notes.nc"), "cannot be read as a NetCDF dataset"),
+                       (("plot", "."), "is a directory"),
+                       (("export", "notes.nc", "x.vts"), "cannot read the dataset"),
+                       (("run", "tiny.toml", "-o", "notes.nc", "--resume"), "cannot be read as a dataset")):
+        status, out, err = run_cli(capsys, *argv)
+        if status == 2 and "vtk" in err.lower() and argv[0] == "export":
+            continue  # the optional VTK package is not installed: that is checked first
+        assert status == 2, (argv, err)
+        assert len(err.splitlines()) == 1 and what in err and "http" not in err and len(err) < 300, (argv, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.nc", "tiny.toml"]
+    assert (tmp_path / "notes.nc").read_text() == "not a dataset\n"
