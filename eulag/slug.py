@@ -98,6 +98,8 @@ _CHOICES = {("tube", "orientation"): ("horizontal", "vertical"), ("gas", "inlet"
             ("numerics", "grain_interpolation"): ("normalised", "printed")}
 _INTS = {("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "steps_per_contact"),
          ("numerics", "seed"), ("numerics", "cross_section_pixels")}
+#: The longest simulated time a case may ask for [s] (the paper's runs: 22.5 s).
+END_TIME_MAX_S = 1e5
 #: Largest values of the integers (numerics.seed: any int64 >= 0; the others at most 10⁷): the gas
 #: grid of the paper has 150 x 2 x 2 nodes.
 _INT_MAX = {"cells_x": 100_000, "cells_across": 64}
@@ -112,6 +114,12 @@ _RANGES = {
     ("numerics", "min_solid_fraction_force"): (1e-6, 1.0, True), ("initial", "plug_start_m"): (0.0, 1e3, True),
     ("initial", "plug_length_m"): (0.0, 1e3, True), ("grains", "tangential_damping_ratio"): (0.0, 100.0, True),
     ("numerics", "overlap_limit"): (0.0, 1.0, False), ("numerics", "cross_section_at"): (0.0, 1.0, True),
+    # plausibility of the SI quantities (a length in mm or a pressure in bar falls outside)
+    ("tube", "length_m"): (0.0, 100.0, False), ("tube", "diameter_m"): (0.0, 1.0, False),
+    ("grains", "diameter_m"): (0.0, 0.1, False), ("grains", "density_kg_m3"): (0.0, 25000.0, False),
+    ("grains", "stiffness_N_m"): (0.0, 1e8, False), ("gas", "pressure_Pa"): (1e3, 1e8, True),
+    ("gas", "viscosity_Pa_s"): (0.0, 1e-3, False), ("numerics", "gas_dt_s"): (0.0, 1.0, False),
+    ("numerics", "end_time_s"): (0.0, END_TIME_MAX_S, False),
 }
 #: numerics.cross_section_pixels: from 2 up to pixels of d/4 (20 across the paper's tube): finer
 #: pixels would resolve a single grain's outline, not a solids fraction.

@@ -353,9 +353,13 @@ def test_dense_model_cases_follow_the_name_rule_and_their_cross_checks(tmp_path,
         # solids lighter than the gas
         "tf_light": re.sub(r'(?ms)(\[solids\][^\[]*?)^density = [^\n]*', r'\1density = 1.0', tf),
         "slug_huge": re.sub(r'(?m)^length_m = .*$', "length_m = 1" + "0" * 400, slug),
+        # SI quantities in other units: the tube diameter in mm, the pressure in bar
+        "slug_mm": re.sub(r'(?ms)(\[tube\][^\[]*?)^diameter_m = [^\n]*', r'\1diameter_m = 7.0', slug),
+        "slug_bar": re.sub(r'(?m)^pressure_Pa = .*$', "pressure_Pa = 1.01325", slug),
     }
     expected = {"slug_path": 'name = "a/b"', "tf_escape": 'name = "../escape"', "tf_empty": 'name = ""',
-                "tf_light": "solids.density = 1.0", "slug_huge": "tube.length_m = "}
+                "tf_light": "solids.density = 1.0", "slug_huge": "tube.length_m = ",
+                "slug_mm": "tube.diameter_m = 7.0", "slug_bar": "gas.pressure_Pa = 1.01325"}
     for label, text in bad.items():
         path = tmp_path / f"{label}.toml"
         path.write_text(text)

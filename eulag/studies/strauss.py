@@ -255,13 +255,13 @@ def study_cases(quick: bool = False, groups=None, feeds=None, velocities=None, w
     out: dict = {}
     state = None
     if from_state is not None:
-        from eulag.slug import read_state, validate_slug_case
+        from eulag.slug import END_TIME_MAX_S, read_state, validate_slug_case
 
         if quick:
             raise _BadInput("--from-state: not with --quick (quick runs use a 7 cm tube)")
         probe = copy.deepcopy(horiz.data)
         probe.setdefault("initial", {})["state"] = str(from_state)
-        probe.setdefault("numerics", {})["end_time_s"] = 1e9
+        probe.setdefault("numerics", {})["end_time_s"] = END_TIME_MAX_S  # any state's time is before it
         try:
             state = (str(from_state), read_state(str(from_state), validate_slug_case(probe))[1])
         except ValueError as exc:
