@@ -510,8 +510,8 @@ class PhysicsConfig(_Section):
         ``"lagrangian"`` (default; R = R_L, the fluid's Lagrangian correlation: the drift
         d<u'u'>/dx dt that the mean pressure gradient gives the fluid seen over the step, whatever
         the particle's inertia, Minier & Peirano 2001) or ``"particle"`` (R = R_P, the particle's
-        correlation with the crossing-trajectory part, as PHYSICS.md states the MacInnes & Bracco
-        term; its mean fluid velocity seen is T_L d<u'u'>/dx instead of T_L* d<u'u'>/dx, T_L* the
+        correlation with the crossing-trajectory part, the form in which the MacInnes & Bracco
+        term is usually quoted; its mean fluid velocity seen is T_L d<u'u'>/dx instead of T_L* d<u'u'>/dx, T_L* the
         shorter decorrelation time of the fluid seen). Identical for tracers.
     partner_correlation : str
         Where the stochastic collision model takes the Stokes number of its partner
@@ -1194,10 +1194,14 @@ def key_reference() -> str:
     lines = ["# Case-file reference", "",
              "Generated from the case schema (`eulag/config.py`) by "
              "`python -m eulag.config docs/case-reference.md`; do not edit by hand.", "",
-             "A case file is TOML. Top-level keys: `name` (default: the file's stem), `description`, and "
+             "A case file is TOML. Top-level keys: `name` (default: the file's stem), `description`, "
              "`model` (`\"euler-lagrange\"`, the default; `\"dem-darcy\"` and `\"two-fluid\"` cases are "
-             "validated by their own models). Every key below is written into the result dataset as a "
-             "global attribute `case_<section>_<key>`, defaults included.", ""]
+             "validated by their own models: `eulag check CASE` lists their keys with defaults; docs/slug.md, "
+             "docs/two-fluid.md), and "
+             "`profile` (`\"paper\"`: the reference paper's value for every departure the file does not "
+             "set; docs/physics.md, section 7). The keys below are the Euler-Lagrange model's; every one "
+             "is written into the result dataset as a global attribute `case_<section>_<key>`, defaults "
+             "included.", ""]
     for name, cls in _SECTIONS.items():
         first = (inspect.getdoc(cls) or "").split("\n\n")[0].replace("\n", " ")
         lines += [f"## `[{name}]`", "", first, "",
