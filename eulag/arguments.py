@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["positive_int", "short_reason"]
+__all__ = ["positive_int", "short_reason", "unreadable_archive_reason"]
 
 
 def positive_int(text: str) -> int:
@@ -25,3 +25,16 @@ def short_reason(exc: BaseException, limit: int = 160) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     head = text.split(". ")[0]
     return head if len(head) <= limit else head[:limit - 3] + "..."
+
+
+def unreadable_archive_reason(exc: BaseException) -> str:
+    """Why a checkpoint (a NumPy .npz archive) could not be read, for a one-line error: numpy's
+    own text for a file that is not an archive suggests loading it with pickles allowed, which
+    a foreign file must never be."""
+    import zipfile
+
+    if isinstance(exc, (ValueError, zipfile.BadZipFile, EOFError)):
+        return "not a NumPy .npz archive (truncated, or another kind of file)"
+    if isinstance(exc, KeyError):
+        return f"an .npz archive without the entry {exc}"
+    return short_reason(exc)

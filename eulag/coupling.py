@@ -539,7 +539,9 @@ def read_checkpoint(path):
             meta = json.loads(bytes(z["meta"]).decode())
             residual = np.asarray(z["hist_residual"], dtype=float) if "hist_residual" in z.files else np.zeros(0)
     except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
-        raise CouplingError(f"{path}: not a readable eulag checkpoint ({exc})") from None
+        from eulag.arguments import unreadable_archive_reason
+
+        raise CouplingError(f"{path}: not a readable eulag checkpoint ({unreadable_archive_reason(exc)})") from None
     return meta, residual
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import os
-import tempfile
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -18,6 +17,7 @@ import xarray as xr
 
 import eulag
 from eulag.config import dataset_attr_name
+from eulag.files import atomic_write
 
 __all__ = ["gas_dataset", "coupled_dataset", "write_dataset", "atomic_write", "CONVENTIONS"]
 
@@ -188,33 +188,6 @@ def is_converged(ds) -> bool:
     if "converged" in ds.variables:
         return bool(int(ds["converged"].values))
     return ds.attrs.get("converged") == "true"
-
-
-def atomic_write(path: str | os.PathLike, write) -> Path:
-    """Call ``write(tmp_path)`` on a temporary file beside ``path``, fsync it, rename it over ``path``.
-
-    On any failure (including KeyboardInterrupt) the temporary file is removed and ``path``
-    is left as it was, so a reader never sees a partial file.
-    """
-    path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    os.close(fd)
-    try:
-        write(tmp)
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return path
 
 
 def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:

@@ -15,8 +15,11 @@ four-way coupling loop of :mod:`eulag.coupling`), ``"dem-darcy"`` (:mod:`eulag.s
 Resume rules (one place for all front-ends): a coupled run keeps its checkpoint beside the
 output (``out.nc.checkpoint``); ``resume=True`` continues from it, and returns an output that
 already holds a finished run of the same case without computing anything; ``resume=False``
-starts afresh and removes an earlier checkpoint.  An output of a *different* case is never
-taken for this one (:class:`BadInput`).  Errors are :class:`RunError` (exit status 1) or
+starts afresh and removes an earlier checkpoint (saying so).  An output of a *different* case
+is never taken for this one nor overwritten by a resume, and a checkpoint that this case cannot
+continue (unreadable, another case's) is named, not ignored (:class:`BadInput`; checked before
+any work, :func:`_prepare_output`, which also removes the temporary files of a write that a kill
+interrupted).  Errors are :class:`RunError` (exit status 1) or
 :class:`BadInput` (exit status 2) with a one-line message.
 """
 
@@ -336,12 +339,14 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
     A run that fails raises :class:`RunError` naming what failed (the checkpoint of the last
     complete pass is kept for ``resume``).
     """
+    if not isinstance(case, ModelCase):
+        case = with_parcels(case, parcels)
+    out = Path(out) if out is not None else None
+    if out is not None:
+        _prepare_output(case, out, resume=resume, notify=notify)
     if isinstance(case, ModelCase):
         result = _execute_other(case, out, resume=resume, progress=progress)
-        out = result.out
     else:
-        case = with_parcels(case, parcels)
-        out = Path(out) if out is not None else None
         if case.particles is None:
             result = _single_phase(case, out, resume=resume, gas_progress=gas_progress)
         else:
@@ -355,6 +360,36 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
             result.figure_error = (f"figures not written ({type(exc).__name__}: {' '.join(str(exc).split())}); "
                                    f"the dataset {out} is complete")
     return result
+
+
+def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
+    """Before any work on ``out``: the temporary files of a write that a kill interrupted
+    (``eulag.files.atomic_write``: ``.<out name>.*.tmp``, the checkpoint's too) are removed.
+    With ``resume`` an existing output must hold this case (:func:`dataset_state`: BadInput
+    for another case or a file that is not a dataset, whether a checkpoint exists or not), and
+    an existing checkpoint must be one this case can continue (BadInput naming it otherwise);
+    without, the checkpoint of an earlier run is removed, and ``notify`` says so."""
+    import glob
+
+    directory = out.parent if str(out.parent) else Path(".")
+    for tmp in directory.glob(f".{glob.escape(out.name)}.*.tmp"):
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+    single_phase = isinstance(case, Case) and case.particles is None
+    ckpt = None if single_phase else checkpoint_path(out, case)
+    if resume:
+        dataset_state(out, case)  # raises for another case's output or an unreadable one
+        state = checkpoint_state(ckpt, case) if ckpt is not None else None
+        if state is not None and state[2] is not None:
+            problem = state[2].removeprefix(f"{ckpt}: ")
+            raise BadInput(f"--resume: {ckpt}: {problem}; allowed: a checkpoint of this case (remove it, "
+                           "or run without --resume to start afresh)")
+    elif ckpt is not None and ckpt.exists():
+        ckpt.unlink()
+        if notify is not None:
+            notify(f"{ckpt}: the checkpoint of an earlier run was removed (--resume continues one)")
 
 
 def run(case, out: str | Path | None = None, **kwargs):
@@ -435,10 +470,13 @@ def _execute_other(case: ModelCase, out, *, resume: bool, progress) -> RunResult
     and ``stop_reason`` attributes give the verdict)."""
     _, _, runner = _DENSE[case.model]
     out = Path(out) if out is not None else None
-    # (only a converged one: a slug dataset is judged again by today's rules, and one stored
-    # before a rule existed that it breaks is run again)
-    if resume and out is not None and not checkpoint_path(out, case).exists() and finished_run(out, case):
-        return _reused(case, out)
+    # a finished run of this case: a two-fluid one whether it converged or not (running it
+    # again gives the same); a slug one only if converged (its dataset is judged again by
+    # today's rules, and one stored before a rule existed that it breaks is run again)
+    if resume and out is not None and not checkpoint_path(out, case).exists():
+        state = dataset_state(out, case)
+        if state == "converged" or (state == "unconverged" and case.model == "two-fluid"):
+            return _reused(case, out)
     try:
         ds = getattr(_model_module(case.model), runner)(case.data, out, resume=resume, progress=progress is not None)
     except (CaseError, ValueError) as exc:

@@ -54,7 +54,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from pathlib import Path
 
@@ -707,12 +706,13 @@ class _Simulation:
 
 
 def _atomic_savez(path: Path, state: dict):
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as fh:
-        np.savez(fh, **state)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    from eulag.files import atomic_write
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **state)
+
+    atomic_write(path, write)
 
 
 def checkpoint_path(out) -> Path:
@@ -754,7 +754,9 @@ def checkpoint_problem(ckpt, case: dict):
         with np.load(Path(ckpt), allow_pickle=False) as z:
             key = str(z["case_json"]) if "case_json" in z.files else None
     except Exception as exc:  # noqa: BLE001 - unreadable for whatever reason
-        return f"cannot be read ({' '.join(str(exc).split())})"
+        from eulag.arguments import unreadable_archive_reason
+
+        return f"cannot be read ({unreadable_archive_reason(exc)})"
     if key is None:
         return "checkpoint written without its case, which cannot be checked"
     try:
@@ -905,9 +907,9 @@ def run_slug(case: dict, out, resume=False, progress=True):
     if out is None:
         return ds
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    ds.to_netcdf(tmp)
-    os.replace(tmp, out)
+    from eulag.files import atomic_write
+
+    atomic_write(out, lambda tmp: ds.to_netcdf(tmp))
     if ckpt.exists():
         ckpt.unlink()
     return ds

@@ -379,7 +379,7 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed, march=
 
 def _savez_atomic(path: Path, **arrays) -> None:
     """``np.savez`` to ``path`` through a temporary file: a kill never leaves a partial checkpoint."""
-    from eulag.output import atomic_write
+    from eulag.files import atomic_write
 
     def write(tmp):
         with open(tmp, "wb") as fh:
@@ -420,7 +420,9 @@ def checkpoint_problem(ckpt, case: dict):
         with np.load(Path(ckpt)) as d:
             key = str(d["case_json"])
     except Exception as exc:  # noqa: BLE001 - unreadable for whatever reason
-        return f"cannot be read ({' '.join(str(exc).split())})"
+        from eulag.arguments import unreadable_archive_reason
+
+        return f"cannot be read ({unreadable_archive_reason(exc)})"
     return None if key == dataset_key(case) else "checkpoint of a different case"
 
 

@@ -403,3 +403,53 @@ def test_a_file_that_is_not_a_dataset_is_bad_input_in_one_short_line(tmp_path, m
         assert len(err.splitlines()) == 1 and what in err and "http" not in err and len(err) < 300, (argv, err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.nc", "tiny.toml"]
     assert (tmp_path / "notes.nc").read_text() == "not a dataset\n"
+
+
+def _tiny_two_fluid(restitution=0.7):
+    """Ding et al.'s Q_s = 0.4 case on a 6 x 8 section with 60 iterations: about 2 s, and it
+    ends unconverged, so it keeps its checkpoint."""
+    text = (ROOT / "cases" / "two_fluid" / "ding_qs0.4.toml").read_text()
+    text = re.sub(r'(?m)^name = .*$', 'name = "tf_tiny"', text)
+    text = re.sub(r"(?m)^radial_cells = .*$", "radial_cells = 6", text)
+    text = re.sub(r"(?m)^azimuthal_cells = .*$", "azimuthal_cells = 8", text)
+    text = re.sub(r"(?m)^max_iterations = .*$", "max_iterations = 60", text)
+    return re.sub(r"(?ms)(\[kinetic\][^\[]*?)^restitution = [^\n]*", rf"\1restitution = {restitution}", text)
+
+
+def test_resume_refuses_another_cases_output_and_unusable_checkpoints(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.toml").write_text(_tiny_two_fluid(0.7))
+    (tmp_path / "b.toml").write_text(_tiny_two_fluid(0.8))
+    status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--quiet", "--no-plots")
+    ckpt = tmp_path / "a.nc.checkpoint.npz"
+    assert status == 1 and ckpt.is_file(), err  # unconverged after 60 iterations: its checkpoint stays
+    kept = (tmp_path / "a.nc").read_bytes()
+    # another case's output is never overwritten by a resume, with a checkpoint beside it or not
+    status, out, err = run_cli(capsys, "run", "b.toml", "-o", "a.nc", "--resume", "--quiet", "--no-plots")
+    assert status == 2 and len(err.splitlines()) == 1 and "holds a different case" in err, err
+    assert (tmp_path / "a.nc").read_bytes() == kept
+    # a checkpoint of another case, or one that is not an archive, is named and refused
+    (tmp_path / "a.nc").unlink()
+    status, out, err = run_cli(capsys, "run", "b.toml", "-o", "a.nc", "--resume", "--quiet", "--no-plots")
+    assert status == 2 and "a.nc.checkpoint.npz: checkpoint of a different case" in err, err
+    good = ckpt.read_bytes()
+    ckpt.write_bytes(good[:len(good) // 2])
+    status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--resume", "--quiet", "--no-plots")
+    assert status == 2 and len(err.splitlines()) == 1, err
+    assert "a.nc.checkpoint.npz: cannot be read (not a NumPy .npz archive" in err and "pickle" not in err, err
+    assert not (tmp_path / "a.nc").exists()
+    # a fresh run says that it removes an earlier run's checkpoint, and removes the temporary
+    # files of a write a kill interrupted (its own only)
+    ckpt.write_bytes(good)
+    for name in (".a.nc.x1.tmp", ".a.nc.checkpoint.npz.x2.tmp", ".other.nc.x3.tmp"):
+        (tmp_path / name).write_bytes(b"partial")
+    status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--no-plots")
+    assert status == 1 and "a.nc.checkpoint.npz: the checkpoint of an earlier run was removed" in err, err
+    assert sorted(p.name for p in tmp_path.glob(".*.tmp")) == [".other.nc.x3.tmp"]
+    assert (tmp_path / "a.nc").read_bytes() != b""
+    # a finished unconverged two-fluid run without its checkpoint is taken as finished
+    ckpt.unlink()
+    before = (tmp_path / "a.nc").stat().st_mtime_ns
+    status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--resume", "--no-plots")
+    assert status == 1 and "already a finished run" in out and "converged = false" in err, (out, err)
+    assert (tmp_path / "a.nc").stat().st_mtime_ns == before and not ckpt.exists()
