@@ -38,11 +38,27 @@ def __dir__():
 
 
 def open_dataset(path):
-    """A result file of ``eulag run`` as an in-memory ``xarray.Dataset`` (the file is closed)."""
+    """A result file of ``eulag run`` as an in-memory ``xarray.Dataset`` (the file is closed).
+    A path that is missing, a directory or not a NetCDF dataset raises ValueError with one line
+    saying so (``FileNotFoundError`` for a missing file)."""
+    import os
+    from pathlib import Path
+
     import xarray as xr
 
-    with xr.open_dataset(path) as ds:
-        return ds.load()
+    from eulag.arguments import short_reason
+
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"path = {type(path).__name__}: wrong type; allowed: the path of a result file (.nc)")
+    if Path(path).is_dir():
+        raise ValueError(f"{path}: is a directory; allowed: the path of a result file (.nc)")
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such result file")
+    try:
+        with xr.open_dataset(path) as ds:
+            return ds.load()
+    except (ValueError, OSError) as exc:
+        raise ValueError(f"{path}: cannot be read as a NetCDF dataset ({short_reason(exc)})") from None
 
 
 @functools.lru_cache(maxsize=1)

@@ -164,6 +164,18 @@ def _pipe_length(ds: xr.Dataset) -> float | None:
     return None
 
 
+def require_euler_lagrange(ds, what: str) -> None:
+    """ValueError unless ``ds`` is a dataset of the Euler–Lagrange model (single-phase or
+    coupled), which the section analysis of ``what`` reads."""
+    if not isinstance(ds, xr.Dataset):
+        raise ValueError(f"{what}: ds = {type(ds).__name__}; allowed: an xarray.Dataset of an Euler-Lagrange run "
+                         "(eulag.open_dataset)")
+    model = str(ds.attrs.get("model", "euler-lagrange"))
+    if model != "euler-lagrange":
+        raise ValueError(f"{what}: a model = {model!r} dataset; allowed: an Euler-Lagrange dataset (the "
+                         f"{model} datasets carry their own summary: eulag plot, docs/slug.md, docs/two-fluid.md)")
+
+
 def check_station(ds: xr.Dataset, x: float | None) -> None:
     """Raise ValueError if the axial position ``x`` [m] lies outside the pipe [0, L].
 
@@ -172,6 +184,10 @@ def check_station(ds: xr.Dataset, x: float | None) -> None:
     """
     if x is None:
         return
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        raise ValueError(f"x = {x!r}: not a number; allowed: a position within the pipe [m]") from None
     if not np.isfinite(x):
         raise ValueError(f"x = {x}: not a number; allowed: a position within the pipe")
     length = _pipe_length(ds)
@@ -229,6 +245,7 @@ def in_plane_velocity(ds: xr.Dataset, x: float | None = None) -> tuple[np.ndarra
 def secondary_flow_strength(ds: xr.Dataset, x: float | None = None) -> float:
     """Largest in-plane gas speed max sqrt(u_y^2 + u_z^2) over the section at x, in % of
     the bulk velocity ``gas.bulk_velocity`` [%]."""
+    require_euler_lagrange(ds, "secondary_flow_strength")
     uy, uz = _field(ds, "gas_uy", x), _field(ds, "gas_uz", x)
     speed = np.hypot(uy, uz)
     if not np.any(np.isfinite(speed)):
@@ -442,6 +459,7 @@ def recirculation_cells(ds: xr.Dataset, x: float | None = None, threshold: float
     Returns the count (int), or ``(count, cells)`` with the list of cell dicts when
     ``details`` is true.
     """
+    require_euler_lagrange(ds, "recirculation_cells")
     geo = polar_section(ds)
     psi = stream_function(ds, x)
     if symmetrise:
@@ -1037,6 +1055,7 @@ def pressure_drop_summary(ds: xr.Dataset) -> dict[str, float | str]:
     with D = pipe.diameter, eta = particles.mass_loading, rho = gas.density,
     U_b = gas.bulk_velocity (NaN when any is missing or eta = 0).
     """
+    require_euler_lagrange(ds, "pressure_drop_summary")
     out: dict[str, float | str] = {}
     means = {}
     for name in ("pressure_gradient", "pressure_gradient_single_phase"):

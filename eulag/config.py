@@ -617,7 +617,10 @@ class NumericsConfig(_Section):
     gas_tolerance : float
         Convergence tolerance of the gas solver (residual) [1], in (0, 0.1] (default 1e-6).
     gas_max_iterations : int
-        Iteration cap of one gas solve, >= 1 (default 3000).
+        Outer-iteration cap of a periodic (fully developed) gas solve, >= 1 (default 3000). The
+        developing march does not use it: each station there has its own cap of 200 outer
+        iterations (``rans.solve``'s ``station_iterations``), and a station that does not
+        converge is reported in the dataset.
     gas_iterations_per_pass : int
         Outer-iteration cap of the periodic gas solve between two Lagrangian passes, >= 1
         (default 300): the coupling loop iterates on, so each gas solve need not converge
@@ -700,7 +703,8 @@ class NumericsConfig(_Section):
     seed: int = _param(INTEGER, "random seed", default=1, ge=0, lt=2 ** 63)
     gas_tolerance: float = _param(NUMBER, "gas-solver residual tolerance", default=1e-6, gt=0.0,
                                   le=0.1)
-    gas_max_iterations: int = _param(INTEGER, "gas-solver iteration cap", default=3000, ge=1,
+    gas_max_iterations: int = _param(INTEGER, "gas-solver iteration cap of the periodic mode "
+                                     "(the developing march caps each station at 200)", default=3000, ge=1,
                                      le=10_000_000)
     gas_iterations_per_pass: int = _param(INTEGER, "periodic gas iterations per coupling pass",
                                           default=300, ge=1, le=10_000_000)
@@ -907,12 +911,12 @@ class Case:
         """
         if not isinstance(d, dict):
             raise CaseError(f"case: wrong type ({_type_name(d)}); allowed: a table")
-        for key, value in d.items():
-            if key not in _TOP_KEYS:
-                raise _unknown(key, value, _TOP_KEYS, "the top level")
         if d.get("model", "euler-lagrange") != "euler-lagrange":
             raise CaseError(f"model = {_fmt(d['model'])}: not a case of the Euler-Lagrange model; allowed "
                             "here: euler-lagrange (eulag.runs.load_case reads the other models' cases)")
+        for key, value in d.items():
+            if key not in _TOP_KEYS:
+                raise _unknown(key, value, _TOP_KEYS, "the top level")
         kwargs: dict[str, Any] = {}
         if "name" in d:
             kwargs["name"] = d["name"]
@@ -949,7 +953,7 @@ class Case:
         ``pipe.reference_data`` must name an existing file, relative to the case file's
         directory or to eulag's ``cases/`` directory.
         """
-        path = Path(path)
+        path = Path(_path_argument(path, "case file"))
         try:
             text = path.read_bytes().decode("utf-8")
         except FileNotFoundError:
@@ -985,7 +989,7 @@ class Case:
     def from_file(cls, spec: str | Path) -> "Case":
         """A case from a TOML file path or a packaged case's name (``eulag cases``), e.g.
         ``Case.from_file("tsuji_morikawa_200um")``."""
-        p = Path(spec)
+        p = Path(_path_argument(spec, "case file"))
         if not p.is_file() and p.suffix != ".toml" and p.parent == Path("."):
             p = packaged_cases().get(p.name, p)
         return cls.from_toml(p)
@@ -1138,6 +1142,16 @@ def case_keys_from_dataset(attrs: dict) -> dict:
 def packaged_cases() -> dict[str, Path]:
     """The case files shipped with eulag (``cases/`` and its folders), by name (file stem)."""
     return {p.stem: p for p in sorted(CASES_DIR.rglob("*.toml"))}
+
+
+def _path_argument(value: Any, what: str):
+    """``value`` if it can be a file path (str or os.PathLike), else CaseError saying so."""
+    import os
+
+    if isinstance(value, (str, os.PathLike)):
+        return value
+    raise CaseError(f"{what} = {_fmt(value) if not isinstance(value, dict) else '{...}'}: wrong type "
+                    f"({_type_name(value)}); allowed: a file path (str or pathlib.Path) or a packaged case's name")
 
 
 def check_name_and_description(name: Any, description: Any = "") -> None:

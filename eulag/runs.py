@@ -105,6 +105,11 @@ class RunResult:
 # ---------------------------------------------------------------------------- cases
 def case_path(spec: str | Path) -> Path:
     """A case file from a path or, when no such file exists, a packaged case's name."""
+    import os
+
+    if not isinstance(spec, (str, os.PathLike)):
+        raise BadInput(f"case = {type(spec).__name__}: wrong type; allowed: an eulag.Case, a case file path "
+                       "or a packaged case's name (eulag cases)")
     p = Path(spec)
     if p.is_file() or p.suffix == ".toml" or p.parent != Path("."):
         return p
@@ -158,6 +163,10 @@ def with_parcels(case: Case, parcels: int | None) -> Case:
     None: unchanged.  The one place the ``--parcels`` option is applied."""
     if parcels is None:
         return case
+    import numpy as np
+
+    if isinstance(parcels, bool) or not isinstance(parcels, (int, np.integer)):
+        raise CaseError(f"--parcels {parcels!r}: wrong type ({type(parcels).__name__}); allowed: an integer >= 1")
     n = case.numerics
     try:
         return case.replace(numerics={"parcels": int(parcels), "parcels_start": min(n.parcels_start, int(parcels))})
@@ -181,28 +190,33 @@ def _model_module(model: str):
 
 
 # ---------------------------------------------------------------------------- outputs
-def output_path(out: str | Path | None, name: str) -> Path:
-    """The output file (``<name>.nc`` by default), checked to be writable before any work."""
+def output_path(out: str | Path | None, name: str, label: str = "-o") -> Path:
+    """The output file (``<name>.nc`` by default), checked to be writable before any work;
+    ``label`` names the argument in the messages (``-o`` of the command line, ``out`` of the
+    Python API)."""
     import os
 
+    if out is not None and not isinstance(out, (str, os.PathLike)):
+        raise BadInput(f"{label} = {out!r}: wrong type; allowed: a file path ending in .nc")
+
     if out is not None and not str(out).strip():
-        raise BadInput("-o '': an empty path; allowed: a NetCDF file path ending in .nc")
+        raise BadInput(f"{label} '': an empty path; allowed: a NetCDF file path ending in .nc")
     out = Path(out) if out else Path(f"{name}.nc")
     if out.is_symlink():
-        raise BadInput(f"-o {out}: is a symbolic link (the output is written to a temporary file and "
+        raise BadInput(f"{label} {out}: is a symbolic link (the output is written to a temporary file and "
                        "renamed, which would replace the link); allowed: a regular file path")
     if out.exists() and out.is_dir():
-        raise BadInput(f"-o {out}: is a directory; allowed: a file path")
+        raise BadInput(f"{label} {out}: is a directory; allowed: a file path")
     if out.exists() and not out.is_file():
-        raise BadInput(f"-o {out}: exists and is not a regular file (a device, pipe or socket); "
+        raise BadInput(f"{label} {out}: exists and is not a regular file (a device, pipe or socket); "
                        "allowed: a regular file path")
     if out.suffix != ".nc":
-        raise BadInput(f"-o {out}: not a NetCDF file name; allowed: a path ending in .nc")
+        raise BadInput(f"{label} {out}: not a NetCDF file name; allowed: a path ending in .nc")
     parent = out.parent if str(out.parent) else Path(".")
     if not parent.is_dir():
-        raise BadInput(f"-o {out}: directory {parent} does not exist; allowed: a path in an existing directory")
+        raise BadInput(f"{label} {out}: directory {parent} does not exist; allowed: a path in an existing directory")
     if not os.access(parent, os.W_OK):
-        raise BadInput(f"-o {out}: directory {parent} is not writable")
+        raise BadInput(f"{label} {out}: directory {parent} is not writable")
     return out
 
 
@@ -339,10 +353,21 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
     A run that fails raises :class:`RunError` naming what failed (the checkpoint of the last
     complete pass is kept for ``resume``).
     """
-    if not isinstance(case, ModelCase):
-        case = with_parcels(case, parcels)
-    out = Path(out) if out is not None else None
+    if isinstance(case, (str, Path)):
+        case = load_case(case)
+    if not isinstance(case, (Case, ModelCase)):
+        case_path(case)  # BadInput: the type allowed
+    if isinstance(case, ModelCase):
+        if parcels is not None:
+            raise BadInput(f"parcels = {parcels!r}: a model = {case.model!r} case tracks no parcels; "
+                           "allowed: None (Euler-Lagrange cases only)")
+    else:
+        try:
+            case = with_parcels(case, parcels)
+        except CaseError as exc:
+            raise BadInput(str(exc)) from None
     if out is not None:
+        out = output_path(out, case.name, label="out")
         _prepare_output(case, out, resume=resume, notify=notify)
     if isinstance(case, ModelCase):
         result = _execute_other(case, out, resume=resume, progress=progress)

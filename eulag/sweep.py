@@ -89,8 +89,12 @@ def plan_sweep(paths, output_dir=".", parcels=None):
 
     Raises :class:`SweepInputError` (nothing run, nothing written except ``output_dir``).
     """
+    import os
+
     from eulag.runs import RunError, checkpoint_path, dataset_state, load_case
 
+    if isinstance(paths, (str, os.PathLike)):  # one case file, not its characters
+        paths = [paths]
     if not paths:
         raise SweepInputError("no case files given")
     outdir = Path(output_dir)
@@ -114,7 +118,9 @@ def plan_sweep(paths, output_dir=".", parcels=None):
         try:
             e.finished = dataset_state(e.output, e.case) is not None
         except RunError as exc:
-            msg = str(exc).replace("--resume: ", "")
+            msg = (str(exc).replace("--resume: ", "")
+                   .replace("or run without --resume to overwrite", "or move it away or write the sweep elsewhere (-o)")
+                   .replace("or a path that does not exist yet", "or move it away or write the sweep elsewhere (-o)"))
             raise SweepInputError(f"case {e.name} ({e.path}): {msg}") from None
         if not e.finished:
             problem = _checkpoint_problem(checkpoint_path(e.output, e.case), e.case)

@@ -212,3 +212,45 @@ def test_case_reference_is_current():
     for name, cls in _SECTIONS.items():
         for f in _public_fields(cls):
             assert f"| `{f.name}` |" in text, f"{name}.{f.name}"
+
+
+def test_python_api_rejects_wrong_arguments_before_any_work(tmp_path):
+    import xarray as xr
+
+    import eulag
+    from eulag import analysis
+    from eulag.config import CaseError
+    from eulag.runs import BadInput
+
+    case = eulag.Case.from_file("tsuji_morikawa_200um")
+    for kwargs, what in (({"out": tmp_path}, "is a directory"), ({"out": tmp_path / "x.txt"}, "ending in .nc"),
+                         ({"out": tmp_path / "no" / "x.nc"}, "does not exist"), ({"out": 5}, "wrong type"),
+                         ({"parcels": 1.5}, "wrong type"), ({"parcels": True}, "wrong type"),
+                         ({"parcels": 0}, "out of range")):
+        with pytest.raises(BadInput, match=what):
+            eulag.run(case, **kwargs)
+    with pytest.raises(BadInput, match="wrong type; allowed: an eulag.Case"):
+        eulag.run({"name": "x"})
+    tf = ROOT / "cases" / "two_fluid" / "ding_qs0.4.toml"
+    with pytest.raises(BadInput, match="tracks no parcels"):
+        eulag.run(tf, out=tmp_path / "tf.nc", parcels=10)
+    with pytest.raises(CaseError, match="wrong type"):
+        eulag.Case.from_file(123)
+    with pytest.raises(CaseError, match="not a case of the Euler-Lagrange model"):
+        eulag.Case.from_file(tf)
+    assert list(tmp_path.iterdir()) == []  # nothing computed, nothing written
+    (tmp_path / "notes.nc").write_text("not a dataset\n")
+    for path, err, what in ((tmp_path, ValueError, "is a directory"), (tmp_path / "absent.nc", FileNotFoundError,
+                                                                     "no such result file"),
+                            (tmp_path / "notes.nc", ValueError, "cannot be read as a NetCDF dataset")):
+        with pytest.raises(err, match=what) as info:
+            eulag.open_dataset(path)
+        assert "\n" not in str(info.value) and "http" not in str(info.value)
+    slug = xr.Dataset(attrs={"model": "dem-darcy"})
+    for fn in (analysis.pressure_drop_summary, analysis.secondary_flow_strength, analysis.recirculation_cells):
+        with pytest.raises(ValueError, match="model = 'dem-darcy' dataset; allowed: an Euler-Lagrange dataset"):
+            fn(slug)
+        with pytest.raises(ValueError, match="allowed: an xarray.Dataset"):
+            fn({"gas_uy": 1})
+    with pytest.raises(ValueError, match="not a number"):
+        analysis.check_station(slug, "abc")
