@@ -618,9 +618,9 @@ class NumericsConfig(_Section):
         Convergence tolerance of the gas solver (residual) [1], in (0, 0.1] (default 1e-6).
     gas_max_iterations : int
         Outer-iteration cap of a periodic (fully developed) gas solve, >= 1 (default 3000). The
-        developing march does not use it: each station there has its own cap of 200 outer
-        iterations (``rans.solve``'s ``station_iterations``), and a station that does not
-        converge is reported in the dataset.
+        developing march does not use it: it caps each station's outer iterations itself (200
+        in a station's first attempt, more in its relaxed retries and extensions;
+        ``rans.solve``), and a station that does not converge is reported in the dataset.
     gas_iterations_per_pass : int
         Outer-iteration cap of the periodic gas solve between two Lagrangian passes, >= 1
         (default 300): the coupling loop iterates on, so each gas solve need not converge
@@ -704,7 +704,7 @@ class NumericsConfig(_Section):
     gas_tolerance: float = _param(NUMBER, "gas-solver residual tolerance", default=1e-6, gt=0.0,
                                   le=0.1)
     gas_max_iterations: int = _param(INTEGER, "gas-solver iteration cap of the periodic mode "
-                                     "(the developing march caps each station at 200)", default=3000, ge=1,
+                                     "(the developing march caps each station's iterations itself)", default=3000, ge=1,
                                      le=10_000_000)
     gas_iterations_per_pass: int = _param(INTEGER, "periodic gas iterations per coupling pass",
                                           default=300, ge=1, le=10_000_000)
@@ -744,11 +744,6 @@ class NumericsConfig(_Section):
         if self.average_passes > self.max_passes:
             raise _error("numerics.average_passes", self.average_passes, "out of range",
                          f"an integer >= 1 and <= numerics.max_passes = {self.max_passes}")
-        cells = self.axial_cells * self.radial_cells * self.azimuthal_cells
-        if cells > MAX_CELLS:
-            raise CaseError(f"numerics.axial_cells x radial_cells x azimuthal_cells = {self.axial_cells} x "
-                            f"{self.radial_cells} x {self.azimuthal_cells} = {cells:,} cells: out of range; "
-                            f"allowed: at most {MAX_CELLS:,} cells")
 
 
 # ---------------------------------------------------------------------------
@@ -883,6 +878,13 @@ class Case:
         """The bulk Reynolds number within the turbulent range of the k-ε model with wall
         functions, and a wall cell (its centre at numerics.first_cell_yplus) that fits the pipe:
         values each within its own range can still clash (a wall cell wider than the radius)."""
+        n = self.numerics
+        stations = 1 if self.pipe.mode == "periodic" else n.axial_cells
+        cells = stations * n.radial_cells * n.azimuthal_cells
+        if cells > MAX_CELLS:
+            raise CaseError(f"numerics.axial_cells x radial_cells x azimuthal_cells = {stations} x "
+                            f"{n.radial_cells} x {n.azimuthal_cells} = {cells:,} cells: out of range; "
+                            f"allowed: at most {MAX_CELLS:,} cells")
         g, d = self.gas, self.pipe.diameter
         re = g.density * g.bulk_velocity * d / g.viscosity
         given = (f"gas.density = {_num(g.density)}, gas.bulk_velocity = {_num(g.bulk_velocity)}, "

@@ -158,7 +158,7 @@ def load_case(spec: str | Path, *, parcels: int | None = None):
         raise BadInput(str(exc)) from None
 
 
-def with_parcels(case: Case, parcels: int | None) -> Case:
+def with_parcels(case: Case, parcels: int | None, label: str = "--parcels") -> Case:
     """``case`` with ``parcels`` per final pass (and at most that many in the early passes);
     None: unchanged.  The one place the ``--parcels`` option is applied."""
     if parcels is None:
@@ -166,12 +166,12 @@ def with_parcels(case: Case, parcels: int | None) -> Case:
     import numpy as np
 
     if isinstance(parcels, bool) or not isinstance(parcels, (int, np.integer)):
-        raise CaseError(f"--parcels {parcels!r}: wrong type ({type(parcels).__name__}); allowed: an integer >= 1")
+        raise CaseError(f"{label} {parcels!r}: wrong type ({type(parcels).__name__}); allowed: an integer >= 1")
     n = case.numerics
     try:
         return case.replace(numerics={"parcels": int(parcels), "parcels_start": min(n.parcels_start, int(parcels))})
     except CaseError as exc:
-        raise CaseError(f"--parcels {parcels}: {exc}") from None
+        raise CaseError(f"{label} {parcels}: {exc}") from None
 
 
 def model_check_report(case: ModelCase) -> str:
@@ -293,7 +293,7 @@ def dataset_state(out: str | Path, case) -> str | None:
     """What the output ``out`` holds for ``case``: None (no file), ``"converged"`` or
     ``"unconverged"`` (a finished run of this case that ended unconverged: all its passes
     used, running it again gives the same); :class:`BadInput` if it holds another case (never
-    overwritten by a resume), :class:`RunError` if it cannot be read."""
+    overwritten by a resume) or if it cannot be read as a dataset."""
     out = Path(out)
     if not out.is_file():
         return None
@@ -363,7 +363,7 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
                            "allowed: None (Euler-Lagrange cases only)")
     else:
         try:
-            case = with_parcels(case, parcels)
+            case = with_parcels(case, parcels, label="parcels =")
         except CaseError as exc:
             raise BadInput(str(exc)) from None
     if out is not None:
@@ -388,20 +388,13 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
 
 
 def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
-    """Before any work on ``out``: the temporary files of a write that a kill interrupted
-    (``eulag.files.atomic_write``: ``.<out name>.*.tmp``, the checkpoint's too) are removed.
-    With ``resume`` an existing output must hold this case (:func:`dataset_state`: BadInput
-    for another case or a file that is not a dataset, whether a checkpoint exists or not), and
+    """Before any work on ``out``: with ``resume`` an existing output must hold this case
+    (:func:`dataset_state`: BadInput for another case or a file that is not a dataset, whether a
+    checkpoint exists or not), and
     an existing checkpoint must be one this case can continue (BadInput naming it otherwise);
-    without, the checkpoint of an earlier run is removed, and ``notify`` says so."""
-    import glob
-
-    directory = out.parent if str(out.parent) else Path(".")
-    for tmp in directory.glob(f".{glob.escape(out.name)}.*.tmp"):
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
+    without, the checkpoint of an earlier run is removed, and ``notify`` says so.  Then the
+    temporary files of a write that a kill interrupted (``eulag.files.atomic_write``:
+    ``.<out name>.<8 characters>.tmp``, the checkpoint's too) are removed."""
     single_phase = isinstance(case, Case) and case.particles is None
     ckpt = None if single_phase else checkpoint_path(out, case)
     if resume:
@@ -415,6 +408,18 @@ def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
         ckpt.unlink()
         if notify is not None:
             notify(f"{ckpt}: the checkpoint of an earlier run was removed (--resume continues one)")
+    # atomic_write's temporaries of the output and its checkpoint: ".<name>.<8 random>.tmp"
+    import re
+
+    stem = re.escape(out.name)
+    own = re.compile(rf"\.{stem}(\.checkpoint(\.npz)?)?\.[A-Za-z0-9_]{{8}}\.tmp")
+    directory = out.parent if str(out.parent) else Path(".")
+    for tmp in directory.glob(".*.tmp"):
+        if own.fullmatch(tmp.name):
+            try:
+                tmp.unlink()
+            except OSError:
+                pass
 
 
 def run(case, out: str | Path | None = None, **kwargs):

@@ -160,6 +160,14 @@ def validate_two_fluid_case(case: dict) -> None:
     if not solids["density"] > gas["density"]:
         raise ValueError(f"solids.density = {_fmt(solids['density'])}: allowed a number > gas.density "
                          f"({_fmt(gas['density'])}): particles heavier than the gas")
+    from rans.mesh import wall_cell_thickness
+
+    yplus = case.get("numerics", {}).get("first_cell_yplus", SCHEMA["numerics"]["first_cell_yplus"][0])
+    thickness, _ = wall_cell_thickness(pipe["diameter"], yplus, gas["superficial_velocity"], gas["density"],
+                                       gas["viscosity"])
+    if not 0.0 < thickness < 0.5 * pipe["diameter"]:
+        raise ValueError(f"numerics.first_cell_yplus = {_fmt(yplus)}: allowed a y+ whose wall cell fits the pipe "
+                         f"(here {thickness:.3g} m thick in a pipe of radius {0.5 * pipe['diameter']:g} m)")
     if not solids["diameter"] < 0.2 * pipe["diameter"]:
         raise ValueError(f"solids.diameter = {_fmt(solids['diameter'])}: allowed a number < pipe.diameter / 5 "
                          f"({0.2 * pipe['diameter']:g}): a continuum of particles much smaller than the pipe")

@@ -319,13 +319,16 @@ def test_output_that_is_not_a_regular_nc_file_is_refused_and_left_alone(tmp_path
     ("bulk_velocity = 10.0\ninlet_k = 1.0\n\n[numerics]", "bulk_velocity = 2.0\ninlet_k = 0.04\n\n[numerics]\n"
      "first_cell_yplus = 500", "numerics.first_cell_yplus = 500"),
     ("diameter = 0.0305", "diameter = 1" + "0" * 400, "pipe.diameter = "),
-    ("radial_cells = 8\nazimuthal_cells = 16", "radial_cells = 1000\nazimuthal_cells = 4000",
-     "numerics.axial_cells x radial_cells x azimuthal_cells"),
+    # 400 x 1000 x 4000 cells of a developing pipe (a periodic one has a single station)
+    ('mode = "periodic"', 'mode = "developing"', "numerics.axial_cells x radial_cells x azimuthal_cells"),
 ])
 def test_values_that_clash_or_overflow_are_bad_input_naming_the_keys(tmp_path, capsys, old, new, key):
     assert old in TINY
+    text = TINY.replace(old, new)
+    if "developing" in new:
+        text = text.replace("radial_cells = 8\nazimuthal_cells = 16", "radial_cells = 1000\nazimuthal_cells = 4000")
     case = tmp_path / "clash.toml"
-    case.write_text(TINY.replace(old, new))
+    case.write_text(text)
     status, out, err = run_cli(capsys, "check", case)
     assert status == 2, (status, err)
     assert len(err.splitlines()) == 1 and err.startswith(f"eulag: error: {key}"), err
@@ -356,10 +359,14 @@ def test_dense_model_cases_follow_the_name_rule_and_their_cross_checks(tmp_path,
         # SI quantities in other units: the tube diameter in mm, the pressure in bar
         "slug_mm": re.sub(r'(?ms)(\[tube\][^\[]*?)^diameter_m = [^\n]*', r'\1diameter_m = 7.0', slug),
         "slug_bar": re.sub(r'(?m)^pressure_Pa = .*$', "pressure_Pa = 1.01325", slug),
+        # a wall cell wider than the radius at a low gas velocity
+        "tf_yplus": re.sub(r"(?m)^first_cell_yplus = .*$", "first_cell_yplus = 900.0",
+                           re.sub(r"(?m)^superficial_velocity = .*$", "superficial_velocity = 0.5", tf)),
     }
     expected = {"slug_path": 'name = "a/b"', "tf_escape": 'name = "../escape"', "tf_empty": 'name = ""',
                 "tf_light": "solids.density = 1.0", "slug_huge": "tube.length_m = ",
-                "slug_mm": "tube.diameter_m = 7.0", "slug_bar": "gas.pressure_Pa = 1.01325"}
+                "slug_mm": "tube.diameter_m = 7.0", "slug_bar": "gas.pressure_Pa = 1.01325",
+                "tf_yplus": "numerics.first_cell_yplus = 900.0"}
     for label, text in bad.items():
         path = tmp_path / f"{label}.toml"
         path.write_text(text)
@@ -385,6 +392,9 @@ def test_a_study_with_a_bad_case_leaves_no_output_folder(tmp_path, monkeypatch, 
     (tmp_path / "empty.toml").write_text("")
     status, out, err = run_cli(capsys, "study", "error-runtime", tmp_path / "empty.toml")
     assert status == 2 and len(err.splitlines()) == 1, err
+    for study in ("stability", "tsuji-morikawa", "scenes"):  # --parcels beyond the cap
+        status, out, err = run_cli(capsys, "study", study, "--quick", "--parcels", "2000000000")
+        assert status == 2 and len(err.splitlines()) == 1 and "--parcels 2000000000" in err, (study, err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.toml"]
 
 
@@ -441,11 +451,12 @@ def test_resume_refuses_another_cases_output_and_unusable_checkpoints(tmp_path, 
     # a fresh run says that it removes an earlier run's checkpoint, and removes the temporary
     # files of a write a kill interrupted (its own only)
     ckpt.write_bytes(good)
-    for name in (".a.nc.x1.tmp", ".a.nc.checkpoint.npz.x2.tmp", ".other.nc.x3.tmp"):
+    for name in (".a.nc.k3x9_q2p.tmp", ".a.nc.checkpoint.npz.zz_9yx12.tmp", ".other.nc.abcd1234.tmp",
+                 ".a.nc.nc.abcd1234.tmp"):
         (tmp_path / name).write_bytes(b"partial")
     status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--no-plots")
     assert status == 1 and "a.nc.checkpoint.npz: the checkpoint of an earlier run was removed" in err, err
-    assert sorted(p.name for p in tmp_path.glob(".*.tmp")) == [".other.nc.x3.tmp"]
+    assert sorted(p.name for p in tmp_path.glob(".*.tmp")) == [".a.nc.nc.abcd1234.tmp", ".other.nc.abcd1234.tmp"]
     assert (tmp_path / "a.nc").read_bytes() != b""
     # a finished unconverged two-fluid run without its checkpoint is taken as finished
     ckpt.unlink()

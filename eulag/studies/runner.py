@@ -46,7 +46,10 @@ def _with_parcels(case: Case, parcels: int | None) -> Case:
     """``case`` with ``parcels`` per final pass (``eulag.runs.with_parcels``)."""
     from eulag.runs import with_parcels
 
-    return with_parcels(case, parcels)
+    try:
+        return with_parcels(case, parcels)
+    except CaseError as exc:
+        raise _BadInput(str(exc)) from None
 
 
 def _output_dir(args, made: list | None = None) -> Path:
