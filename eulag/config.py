@@ -875,9 +875,10 @@ class Case:
         self._check_flow_and_wall_cell()
 
     def _check_flow_and_wall_cell(self):
-        """The bulk Reynolds number within the turbulent range of the k-ε model with wall
-        functions, and a wall cell (its centre at numerics.first_cell_yplus) that fits the pipe:
-        values each within its own range can still clash (a wall cell wider than the radius)."""
+        """Values each within its own range that can still clash: the mesh within MAX_CELLS
+        (a periodic case has one station), the bulk Reynolds number within the turbulent range
+        of the k-ε model with wall functions, and a wall cell (its centre at
+        numerics.first_cell_yplus) that fits the pipe."""
         n = self.numerics
         stations = 1 if self.pipe.mode == "periodic" else n.axial_cells
         cells = stations * n.radial_cells * n.azimuthal_cells

@@ -198,7 +198,6 @@ def output_path(out: str | Path | None, name: str, label: str = "-o") -> Path:
 
     if out is not None and not isinstance(out, (str, os.PathLike)):
         raise BadInput(f"{label} = {out!r}: wrong type; allowed: a file path ending in .nc")
-
     if out is not None and not str(out).strip():
         raise BadInput(f"{label} '': an empty path; allowed: a NetCDF file path ending in .nc")
     out = Path(out) if out else Path(f"{name}.nc")
@@ -353,7 +352,9 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
     A run that fails raises :class:`RunError` naming what failed (the checkpoint of the last
     complete pass is kept for ``resume``).
     """
-    if isinstance(case, (str, Path)):
+    import os
+
+    if isinstance(case, (str, os.PathLike)):
         case = load_case(case)
     if not isinstance(case, (Case, ModelCase)):
         case_path(case)  # BadInput: the type allowed
