@@ -119,6 +119,7 @@ import particles
 import rans
 from particles.layout import CS_APP, CS_ST, NCS
 from collisions import InterparticleOptions, WallOptions
+from eulag.files import savez_atomic
 
 __all__ = ["CouplingLoop", "PassState", "CouplingError", "Criterion", "CRITERIA", "convergence_criteria", "physics_options", "particle_spec",
            "build_mesh", "CHECKPOINT_VERSION"]
@@ -1157,7 +1158,7 @@ class CouplingLoop:
                 "window_batches": self.window_batches, "window_parcels": self.window_parcels,
                 "timings": self.timings}
         arrays["meta"] = np.frombuffer(json.dumps(meta, default=_json_default).encode(), dtype=np.uint8)
-        _atomic_savez(self.checkpoint, arrays)
+        savez_atomic(self.checkpoint, arrays)
 
     def _load(self):
         try:
@@ -1312,12 +1313,3 @@ def _canonical(d):
                       default=_json_default)
 
 
-def _atomic_savez(path, arrays):
-    """np.savez, written atomically (eulag.output.atomic_write)."""
-    from .output import atomic_write
-
-    def write(tmp):
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-
-    atomic_write(path, write)

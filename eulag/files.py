@@ -8,7 +8,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_write"]
+__all__ = ["atomic_write", "savez_atomic"]
 
 
 def atomic_write(path: str | os.PathLike, write) -> Path:
@@ -36,3 +36,16 @@ def atomic_write(path: str | os.PathLike, write) -> Path:
             pass
         raise
     return path
+
+
+def savez_atomic(path: str | os.PathLike, arrays: dict) -> Path:
+    """``np.savez(path, **arrays)`` through :func:`atomic_write` (a checkpoint that a kill never
+    leaves half-written); ``path`` keeps its name (no ``.npz`` appended)."""
+    import numpy as np
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+
+    return atomic_write(path, write)
+

@@ -35,7 +35,7 @@ from typing import Any, Callable
 from eulag.config import Case, CaseError, check_name_and_description, name_from_stem, packaged_cases
 
 __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
-           "output_path", "finished_run", "dataset_state", "same_case", "case_key", "checkpoint_path", "checkpoint_state", "execute", "run", "with_parcels"]
+           "output_path", "dataset_state", "same_case", "case_key", "checkpoint_path", "checkpoint_state", "execute", "run", "with_parcels"]
 
 #: The models a case can name with its top-level ``model`` key, and the module that runs each.
 MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
@@ -313,12 +313,6 @@ def dataset_state(out: str | Path, case) -> str | None:
         raise BadInput(f"--resume: {out} holds a different case; allowed: the output of this case, "
                        "or run without --resume to overwrite")
     return "converged" if converged else "unconverged"
-
-
-def finished_run(out: Path, case) -> bool:
-    """True if ``out`` holds a converged dataset of this same case; False if there is none or
-    it ended unconverged; :class:`BadInput` if it holds another case (:func:`dataset_state`)."""
-    return dataset_state(out, case) == "converged"
 
 
 def _reused(case, out: Path) -> RunResult:

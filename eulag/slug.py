@@ -59,6 +59,8 @@ from pathlib import Path
 
 import numpy as np
 
+from eulag.files import atomic_write, savez_atomic
+
 __all__ = ["validate_slug_case", "run_slug", "summarize", "slug_profiles", "cross_section_layers", "layer_shear",
            "section_porosity",
            "gas_force_on_grains", "dataset_from_checkpoint",
@@ -227,8 +229,8 @@ def validate_slug_case(case: dict) -> dict:
                     raise _bad(sec, k, v, f"an integer >= {lo} and <= {hi}")
             else:
                 if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
-                    raise _bad(sec, k, v if not isinstance(v, int) or _finite(v) else f"{str(v)[:12]}...",
-                               "a finite number")
+                    shown = f"{str(v)[:12]}..." if isinstance(v, int) and not isinstance(v, bool) else v
+                    raise _bad(sec, k, shown, "a finite number")
                 v = float(v)
                 lo, hi, inc = _RANGES.get((sec, k), (0.0, math.inf, False))
                 if not ((v >= lo if inc else v > lo) and v <= hi):
@@ -705,14 +707,6 @@ class _Simulation:
         return ds
 
 
-def _atomic_savez(path: Path, state: dict):
-    from eulag.files import atomic_write
-
-    def write(tmp):
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **state)
-
-    atomic_write(path, write)
 
 
 def checkpoint_path(out) -> Path:
@@ -845,7 +839,7 @@ def save_state(checkpoint, out) -> Path:
     with np.load(Path(checkpoint), allow_pickle=False) as z:
         st = {k: z[k] for k in z.files if k.startswith(("g_", "d_")) or k in _STATE_ARRAYS}
     out = Path(out)
-    _atomic_savez(out, st)
+    savez_atomic(out, st)
     return out
 
 
@@ -892,7 +886,7 @@ def run_slug(case: dict, out, resume=False, progress=True):
         if sim.gas_step % sim.n_out == 0:
             sim.record()
         if ckpt is not None and sim.gas_step % sim.n_ckpt == 0 and sim.gas_step < sim.n_gas_total:
-            _atomic_savez(ckpt, {**sim.state(), "case_json": np.array(_checkpoint_key(c))})
+            savez_atomic(ckpt, {**sim.state(), "case_json": np.array(_checkpoint_key(c))})
         if progress and time.time() - last_report > 10:
             last_report = time.time()
             r = sim.rec
@@ -907,8 +901,6 @@ def run_slug(case: dict, out, resume=False, progress=True):
     if out is None:
         return ds
     out.parent.mkdir(parents=True, exist_ok=True)
-    from eulag.files import atomic_write
-
     atomic_write(out, lambda tmp: ds.to_netcdf(tmp))
     if ckpt.exists():
         ckpt.unlink()

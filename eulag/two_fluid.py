@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from eulag.files import savez_atomic
+
 __all__ = ["validate_two_fluid_case", "run_two_fluid", "problem_from_case", "resolved_case", "check_report"]
 
 _FRICTION_MODELS = ("dartevelle", "srivastava-sundaresan", "berzi", "none")
@@ -385,14 +387,6 @@ def _dataset(case, solver, st, closures, converged, stop_reason, elapsed, march=
     return ds
 
 
-def _savez_atomic(path: Path, **arrays) -> None:
-    """``np.savez`` to ``path`` through a temporary file: a kill never leaves a partial checkpoint."""
-    from eulag.files import atomic_write
-
-    def write(tmp):
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-    atomic_write(path, write)
 
 
 def _read_checkpoint(ck: Path, key: str):
@@ -480,7 +474,7 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
 
     def save(st):
         if ck is not None and st.iteration % 25 == 0:
-            _savez_atomic(ck, case_json=np.array(key), **st.as_arrays())
+            savez_atomic(ck, {"case_json": np.array(key), **st.as_arrays()})
             if progress:
                 print(f"two-fluid {c.get('name', '')}: iteration {st.iteration}, change {st.history[-1][1]:.2e}, "
                       f"-dp/dx {st.G:.1f} Pa/m", flush=True)
@@ -500,7 +494,7 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
         if ok and ck.is_file():
             ck.unlink()
         elif not ok:
-            _savez_atomic(ck, case_json=np.array(key), **st.as_arrays())
+            savez_atomic(ck, {"case_json": np.array(key), **st.as_arrays()})
     return ds
 
 
@@ -531,8 +525,8 @@ def _run_developing(case, c, pb, key, out, ck, resume, progress):
         cols = {f"station_{k}": np.array([r[k] for r in rows]) for k in rows[0]}
         names = list(fields[0])
         arrays = {f"field_{nm}": np.stack([f[nm] for f in fields]) for nm in names}
-        _savez_atomic(ck, case_json=np.array(key), max_iterations=np.array(pb.max_iterations),
-                      field_names=np.array(names), **cols, **arrays, **st.as_arrays())
+        savez_atomic(ck, {"case_json": np.array(key), "max_iterations": np.array(pb.max_iterations),
+                          "field_names": np.array(names), **cols, **arrays, **st.as_arrays()})
 
     done = []   # the last completed station's state (for the checkpoint of a failure)
 
