@@ -352,6 +352,8 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
         case = load_case(case)
     if not isinstance(case, (Case, ModelCase)):
         case_path(case)  # BadInput: the type allowed
+    if not isinstance(resume, bool):  # "no" or 0 must not pass for a decision about an existing output
+        raise BadInput(f"resume = {resume!r}: wrong type ({type(resume).__name__}); allowed: True or False")
     if isinstance(case, ModelCase):
         if parcels is not None:
             raise BadInput(f"parcels = {parcels!r}: a model = {case.model!r} case tracks no parcels; "

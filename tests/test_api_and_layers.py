@@ -226,7 +226,8 @@ def test_python_api_rejects_wrong_arguments_before_any_work(tmp_path):
     for kwargs, what in (({"out": tmp_path}, "is a directory"), ({"out": tmp_path / "x.txt"}, "ending in .nc"),
                          ({"out": tmp_path / "no" / "x.nc"}, "does not exist"), ({"out": 5}, "wrong type"),
                          ({"parcels": 1.5}, "wrong type"), ({"parcels": True}, "wrong type"),
-                         ({"parcels": 0}, "out of range")):
+                         ({"parcels": 0}, "out of range"), ({"resume": "no"}, "allowed: True or False"),
+                         ({"resume": 1}, "allowed: True or False")):
         with pytest.raises(BadInput, match=what):
             eulag.run(case, **kwargs)
     with pytest.raises(BadInput, match="wrong type; allowed: an eulag.Case"):

@@ -398,6 +398,17 @@ def test_a_study_with_a_bad_case_leaves_no_output_folder(tmp_path, monkeypatch, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.toml"]
 
 
+def test_an_empty_selection_is_bad_input_not_everything(tmp_path, monkeypatch, capsys):
+    """``--only ""`` (an empty list) selects nothing: bad input, not the whole study."""
+    monkeypatch.chdir(tmp_path)
+    for argv in (("scenes", "--only", ""), ("scenes-ablation", "--only", " , "), ("stability", "--only", ""),
+                 ("ding-friction", "--only", ""), ("ding-friction", "--rates", ""), ("strauss", "--only", ""),
+                 ("scenes-ablation", "--variants", "")):
+        status, out, err = run_cli(capsys, "study", argv[0], "--quick", *argv[1:])
+        assert status == 2 and len(err.splitlines()) == 1 and "(none given)" in err, (argv, err)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_file_that_is_not_a_dataset_is_bad_input_in_one_short_line(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "notes.nc").write_text("not a dataset\n")

@@ -132,12 +132,12 @@ def extract_metrics(ds, case: Case) -> dict:
 def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
     names = _select(getattr(args, "only", None), list(ABLATION_SCENES), "scenes")
     labels = None
-    if getattr(args, "variants", None):
+    if getattr(args, "variants", None) is not None:
         known = [v for v, _ in variants(ingredients=True)]
         labels = [v.strip() for v in args.variants.split(",") if v.strip()]
         bad = [v for v in labels if v not in known]
-        if bad:
-            raise _BadInput(f"--variants {args.variants}: unknown {', '.join(bad)}; allowed: {', '.join(known)}")
+        if bad or not labels:
+            raise _BadInput(f"--variants {args.variants}: unknown {', '.join(bad) or '(none given)'}; allowed: {', '.join(known)}")
     try:
         runs_ = ablation_cases(args.quick, names, labels, getattr(args, "parcels", None))
     except CaseError as exc:

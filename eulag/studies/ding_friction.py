@@ -298,7 +298,7 @@ def _short(v: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- the study
 def _parse_list(text, allowed, what, option):
-    if not text:
+    if text is None:
         return list(allowed)
     wanted = [w.strip() for w in text.split(",") if w.strip()]
     bad = [w for w in wanted if w not in allowed]
@@ -311,7 +311,7 @@ def _parse_list(text, allowed, what, option):
 def study_ding_friction(args, outdir: Path, t_start: float) -> int:
     models = _parse_list(getattr(args, "only", None), MODELS, "friction models", "--only")
     rates = _parse_list(getattr(args, "rates", None), RATES, "supplementary gas rates", "--rates") \
-        if getattr(args, "rates", None) else None
+        if getattr(args, "rates", None) is not None else None
     quick = bool(args.quick)
     plan = study_cases(quick, models, rates)
     records = {}

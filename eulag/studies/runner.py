@@ -72,7 +72,8 @@ def _output_dir(args, made: list | None = None) -> Path:
 
 
 def _select(only: str | None, names: list[str], what: str) -> list[str]:
-    if not only:
+    """The names ``--only`` selects (None, the option not given: all; an empty list is bad input)."""
+    if only is None:
         return names
     wanted = [w.strip() for w in only.split(",") if w.strip()]
     bad = [w for w in wanted if w not in names]

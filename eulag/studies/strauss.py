@@ -383,7 +383,7 @@ def _float_list(text, option):
 
 
 def _groups(text, long):
-    if not text:
+    if text is None:
         return None
     wanted = _select(text, list(GROUPS), "groups")
     if "long" in wanted and not long:
