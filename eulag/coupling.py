@@ -1068,7 +1068,8 @@ class CouplingLoop:
         if self.final_solve_failure is not None:
             failed = "; ".join(c.line() for c in self.criteria if not c.met)
             how = (f"the loop converged after pass {self.converged_at}, but" if self.converged_at is not None
-                   else f"max_passes = {self.case.numerics.max_passes} was reached ({failed}), and")
+                   else f"max_passes = {self.case.numerics.max_passes} was reached ({self._judged_at()}: "
+                        f"{failed}), and")
             return (f"not converged: {how} the gas solve on the {self.window_n} final passes' averaged sources "
                     f"failed ({self.final_solve_failure}); the gas field is the relaxed iterate after the "
                     "last final pass")
@@ -1081,8 +1082,13 @@ class CouplingLoop:
         failed = [c.line() for c in self.criteria if not c.met]
         if not failed:
             failed = ["the gas solve of a final pass did not converge"]
-        return (f"not converged when max_passes = {self.case.numerics.max_passes} was reached: "
-                + "; ".join(failed))
+        return (f"not converged when max_passes = {self.case.numerics.max_passes} was reached "
+                f"({self._judged_at()}): " + "; ".join(failed))
+
+    def _judged_at(self) -> str:
+        """Which pass the reported criteria were judged after: the last early pass (the final
+        passes that follow it are averaged, not judged)."""
+        return f"as judged after pass {self.pass_index - self.window_n}, before the {self.window_n} final passes"
 
     def _add_to_window(self, s):
         if self.window is None:
