@@ -315,6 +315,18 @@ def dataset_state(out: str | Path, case) -> str | None:
     return "converged" if converged else "unconverged"
 
 
+def takes_as_finished(state: str | None, case) -> bool:
+    """Whether an output in ``state`` (:func:`dataset_state`) is taken as this case's finished run
+    instead of running it again: the one rule of ``--resume``, the sweep and the studies.  A run
+    that converged is; so is one that ended unconverged after all its passes or iterations
+    (running it again gives the same), except a slug dataset that today's rules reject
+    (``eulag.slug.verdict``): it was stored by a code before the rule (a jammed tube), and is run
+    again."""
+    if state == "converged":
+        return True
+    return state == "unconverged" and not (isinstance(case, ModelCase) and case.model == "dem-darcy")
+
+
 def _reused(case, out: Path) -> RunResult:
     import xarray as xr
 
@@ -432,7 +444,7 @@ def _single_phase(case: Case, out: Path | None, *, resume: bool, gas_progress: b
     from eulag.coupling import build_mesh
     from eulag.output import gas_dataset, write_dataset
 
-    if resume and out is not None and dataset_state(out, case) is not None:
+    if resume and out is not None and takes_as_finished(dataset_state(out, case), case):
         return _reused(case, out)
     t_start = time.perf_counter()
     timings = {}
@@ -470,9 +482,7 @@ def _coupled(case: Case, out: Path | None, *, resume: bool, progress, notify, tr
     t_start = time.perf_counter()
     ckpt = checkpoint_path(out, case) if out is not None else None
     if ckpt is not None:
-        if resume and not ckpt.exists() and dataset_state(out, case) is not None:
-            # a finished run of this case, converged or not: running it again gives the same
-            # (the studies and the sweep take it as finished too)
+        if resume and not ckpt.exists() and takes_as_finished(dataset_state(out, case), case):
             return _reused(case, out)
         if not resume and ckpt.exists():
             ckpt.unlink()  # a fresh run starts from scratch
@@ -497,12 +507,8 @@ def _execute_other(case: ModelCase, out, *, resume: bool, progress) -> RunResult
     and ``stop_reason`` attributes give the verdict)."""
     _, _, runner = _DENSE[case.model]
     out = Path(out) if out is not None else None
-    # a finished run of this case: a two-fluid one whether it converged or not (running it
-    # again gives the same); a slug one only if converged (its dataset is judged again by
-    # today's rules, and one stored before a rule existed that it breaks is run again)
     if resume and out is not None and not checkpoint_path(out, case).exists():
-        state = dataset_state(out, case)
-        if state == "converged" or (state == "unconverged" and case.model == "two-fluid"):
+        if takes_as_finished(dataset_state(out, case), case):
             return _reused(case, out)
     try:
         ds = getattr(_model_module(case.model), runner)(case.data, out, resume=resume, progress=progress is not None)

@@ -206,13 +206,16 @@ def test_an_overlap_beyond_the_limit_is_an_unconverged_run():
 
 
 def test_a_stored_run_beyond_the_overlap_limit_is_judged_again(tmp_path, capsys):
-    """A dataset written before numerics.overlap_limit existed says converged = true; on reuse
-    (eulag run --resume, the studies) it is judged by today's rule, so it is not taken as a
-    finished run: --resume runs the case again."""
+    """A dataset written before numerics.overlap_limit existed says converged = true; on reuse it
+    is judged by today's rule, so it is not taken as a finished run: eulag run --resume, the
+    sweep and the studies (one rule, ``runs.takes_as_finished``) run the case again."""
     import re
+    from types import SimpleNamespace
 
+    from eulag import runs, studies
     from eulag.cli import main
     from eulag.output import is_converged
+    from eulag.sweep import plan_sweep
 
     text = (CASES / "periodic_slug.toml").read_text()
     text, n = re.subn(r"(?m)^end_time_s = [0-9.]+", "end_time_s = 0.01", text)
@@ -227,6 +230,21 @@ def test_a_stored_run_beyond_the_overlap_limit_is_judged_again(tmp_path, capsys)
     with xr.open_dataset(tmp_path / "p.nc") as stored:
         assert stored.attrs["converged"] == "true" and not is_converged(stored)
     assert slug.verdict(ds)[1].startswith("finished, but the largest grain overlap reached 37 % of d")
+    case = runs.load_case(tmp_path / "p.toml")
+    assert not plan_sweep([tmp_path / "p.toml"], tmp_path)[0].finished
+    calls = []
+
+    def counted(*a, **kw):
+        calls.append(a)
+        return real(*a, **kw)
+    real = runs.execute
+    runs.execute = counted
+    try:
+        studies.run_case(SimpleNamespace(resume=True, quiet=True), "p", case, tmp_path, "p")
+    finally:
+        runs.execute = real
+    assert len(calls) == 1  # run again, as eulag run --resume does below
+    ds.to_netcdf(tmp_path / "p.nc")  # the stored run once more
     assert main(["run", str(tmp_path / "p.toml"), "-o", str(tmp_path / "p.nc"), "--resume", "--quiet",
                  "--no-plots"]) == 0
     with xr.open_dataset(tmp_path / "p.nc") as rerun:

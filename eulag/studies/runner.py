@@ -216,8 +216,11 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
             opened = _open(out)
         except Exception:  # noqa: BLE001 - unreadable: run again
             opened = None
-        finished = opened is not None and ("coupling_passes" in opened.attrs or not isinstance(case, Case))
-        if finished and _same_case(opened.attrs, case):
+        finished = (opened is not None and ("coupling_passes" in opened.attrs or not isinstance(case, Case))
+                    and _same_case(opened.attrs, case))
+        if finished and not report:  # --report tabulates every dataset; a resume reuses what the run layer would
+            finished = runs.takes_as_finished("converged" if is_converged(opened) else "unconverged", case)
+        if finished:
             ds = opened
             reused = True
             _log(args, f"  {label}: {out} exists (same case), not run again")
