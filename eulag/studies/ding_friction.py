@@ -76,6 +76,8 @@ SENSITIVITY = (
     ("gas turbulence", "numerics", "turbulence", ("mixing-length",), None, "stated deviation: k-ε"),
     ("wall friction μ_w [-]", "walls", "friction", (0.3,), 1.0,
      "Table 4: 0.5 (shown to locate the Δp gap; not used)"),
+    ("wall cell: y+ of its centre (its thickness in d_s)", "numerics", "first_cell_yplus", (60.0, 100.0, 170.0),
+     1.0, "not given: y+ 30 (0.68 d_s); the paper's Mesh C cells average ≈ 0.43 mm (inferred D), a wall cell that thick ≈ y+ 115"),
 )
 
 PROFILE_FIELDS = ("solids_fraction", "gas_ux", "solids_ux", "gas_k", "granular_temperature",
@@ -388,6 +390,16 @@ GRID_COLUMNS = [Column("model", "friction model"), Column("mesh", "mesh (radial 
                 Column("time_s", "run time [s]", "{:.1f}")]
 
 
+def _wall_cell_grains(data: dict, yplus: float) -> float:
+    """The wall ring's thickness in solids diameters for a case's gas flow at ``yplus``."""
+    from rans.mesh import wall_cell_thickness
+
+    g = data["gas"]
+    h, _ = wall_cell_thickness(data["pipe"]["diameter"], yplus, g["superficial_velocity"], g["density"],
+                               g["viscosity"])
+    return h / data["solids"]["diameter"]
+
+
 def _sensitivity_rows(plan, records) -> list[dict]:
     base = next((records[n] for n, (k, info, c) in plan.items()
                  if k == "matrix" and info["model"] == "berzi" and info["rate"] == "0.8"), None)
@@ -399,7 +411,10 @@ def _sensitivity_rows(plan, records) -> list[dict]:
             continue
         dp = records[n].metrics.get("dp")
         v, scale = info["value"], info["scale"]
-        rows.append({"input": info["label"], "value": f"{v * scale:g}" if scale else str(v),
+        value = f"{v * scale:g}" if scale else str(v)
+        if info["key"] == "first_cell_yplus":
+            value += f" ({_wall_cell_grains(c.data, v):.2f} d_s)"
+        rows.append({"input": info["label"], "value": value,
                      "note": notes[info["label"]], "dp_kPa": dp / 1e3 if dp is not None else None,
                      "change": (dp / base_dp - 1) * 100 if (dp is not None and base_dp) else None,
                      "peak_alpha": records[n].metrics.get("peak_alpha"),
