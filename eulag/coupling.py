@@ -1088,7 +1088,10 @@ class CouplingLoop:
     def _judged_at(self) -> str:
         """Which pass the reported criteria were judged after: the last early pass (the final
         passes that follow it are averaged, not judged)."""
-        return f"as judged after pass {self.pass_index - self.window_n}, before the {self.window_n} final passes"
+        judged = self.pass_index - self.window_n
+        if judged < 1:
+            return f"no early pass was judged: all {self.window_n} passes were final passes"
+        return f"as judged after pass {judged}, before the {self.window_n} final passes"
 
     def _add_to_window(self, s):
         if self.window is None:

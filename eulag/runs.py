@@ -35,7 +35,8 @@ from typing import Any, Callable
 from eulag.config import Case, CaseError, check_name_and_description, name_from_stem, packaged_cases
 
 __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
-           "output_path", "dataset_state", "same_case", "case_key", "checkpoint_path", "checkpoint_state", "execute", "run", "with_parcels"]
+           "output_path", "dataset_state", "stored_state", "takes_as_finished", "finished_output", "same_case",
+           "case_key", "checkpoint_path", "checkpoint_state", "execute", "run", "with_parcels"]
 
 #: The models a case can name with its top-level ``model`` key, and the module that runs each.
 MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
@@ -289,21 +290,18 @@ def checkpoint_state(ckpt: str | Path, case):
 
 
 def dataset_state(out: str | Path, case) -> str | None:
-    """What the output ``out`` holds for ``case``: None (no file), ``"converged"`` or
-    ``"unconverged"`` (a finished run of this case that ended unconverged: all its passes
-    used, running it again gives the same); :class:`BadInput` if it holds another case (never
-    overwritten by a resume) or if it cannot be read as a dataset."""
+    """What the output ``out`` holds for ``case``: None (no file) or its :func:`stored_state`;
+    :class:`BadInput` if it holds another case (never overwritten by a resume) or if it cannot be
+    read as a dataset."""
     out = Path(out)
     if not out.is_file():
         return None
     import xarray as xr
 
-    from eulag.output import is_converged
-
     try:
         with xr.open_dataset(out) as ds:
             attrs = dict(ds.attrs)
-            converged = is_converged(ds)
+            state = stored_state(ds)
     except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
         from eulag.arguments import short_reason
 
@@ -312,19 +310,36 @@ def dataset_state(out: str | Path, case) -> str | None:
     if not same_case(attrs, case):
         raise BadInput(f"--resume: {out} holds a different case; allowed: the output of this case, "
                        "or run without --resume to overwrite")
-    return "converged" if converged else "unconverged"
+    return state
 
 
-def takes_as_finished(state: str | None, case) -> bool:
+def stored_state(ds) -> str:
+    """The verdict of a finished run's dataset: ``"converged"``; ``"unconverged"`` (it ended
+    unconverged after all its passes or iterations: running it again gives the same); or
+    ``"rejected"``, a slug dataset stored as finished that today's rules reject
+    (``eulag.slug.verdict``; written by a code before the rule, e.g. a jammed tube)."""
+    from eulag.output import is_converged
+
+    if is_converged(ds):  # a slug dataset: judged by today's rules
+        return "converged"
+    if ds.attrs.get("model") == "dem-darcy" and ds.attrs.get("converged") == "true":
+        return "rejected"
+    return "unconverged"
+
+
+def takes_as_finished(state: str | None) -> bool:
     """Whether an output in ``state`` (:func:`dataset_state`) is taken as this case's finished run
     instead of running it again: the one rule of ``--resume``, the sweep and the studies.  A run
-    that converged is; so is one that ended unconverged after all its passes or iterations
-    (running it again gives the same), except a slug dataset that today's rules reject
-    (``eulag.slug.verdict``): it was stored by a code before the rule (a jammed tube), and is run
-    again."""
-    if state == "converged":
-        return True
-    return state == "unconverged" and not (isinstance(case, ModelCase) and case.model == "dem-darcy")
+    that converged is, and one that ended unconverged; a ``"rejected"`` slug dataset is run
+    again.  (``eulag run --resume`` continues a checkpoint beside the output instead, which
+    for a finished coupled run writes the same dataset again.)"""
+    return state in ("converged", "unconverged")
+
+
+def finished_output(out: str | Path, case) -> bool:
+    """Whether ``out`` holds a finished run of ``case`` that a resume keeps
+    (:func:`takes_as_finished`; :class:`BadInput` as :func:`dataset_state`)."""
+    return takes_as_finished(dataset_state(out, case))
 
 
 def _reused(case, out: Path) -> RunResult:
@@ -444,7 +459,7 @@ def _single_phase(case: Case, out: Path | None, *, resume: bool, gas_progress: b
     from eulag.coupling import build_mesh
     from eulag.output import gas_dataset, write_dataset
 
-    if resume and out is not None and takes_as_finished(dataset_state(out, case), case):
+    if resume and out is not None and finished_output(out, case):
         return _reused(case, out)
     t_start = time.perf_counter()
     timings = {}
@@ -482,7 +497,7 @@ def _coupled(case: Case, out: Path | None, *, resume: bool, progress, notify, tr
     t_start = time.perf_counter()
     ckpt = checkpoint_path(out, case) if out is not None else None
     if ckpt is not None:
-        if resume and not ckpt.exists() and takes_as_finished(dataset_state(out, case), case):
+        if resume and not ckpt.exists() and finished_output(out, case):
             return _reused(case, out)
         if not resume and ckpt.exists():
             ckpt.unlink()  # a fresh run starts from scratch
@@ -507,9 +522,8 @@ def _execute_other(case: ModelCase, out, *, resume: bool, progress) -> RunResult
     and ``stop_reason`` attributes give the verdict)."""
     _, _, runner = _DENSE[case.model]
     out = Path(out) if out is not None else None
-    if resume and out is not None and not checkpoint_path(out, case).exists():
-        if takes_as_finished(dataset_state(out, case), case):
-            return _reused(case, out)
+    if resume and out is not None and not checkpoint_path(out, case).exists() and finished_output(out, case):
+        return _reused(case, out)
     try:
         ds = getattr(_model_module(case.model), runner)(case.data, out, resume=resume, progress=progress is not None)
     except (CaseError, ValueError) as exc:

@@ -91,7 +91,7 @@ def plan_sweep(paths, output_dir=".", parcels=None):
     """
     import os
 
-    from eulag.runs import RunError, checkpoint_path, dataset_state, load_case, takes_as_finished
+    from eulag.runs import RunError, checkpoint_path, finished_output, load_case
 
     if isinstance(paths, (str, os.PathLike)):  # one case file, not its characters
         paths = [paths]
@@ -116,7 +116,7 @@ def plan_sweep(paths, output_dir=".", parcels=None):
         if e.output.exists() and e.output.is_dir():
             raise SweepInputError(f"{e.output}: is a directory; the output of case {e.name} must be a file")
         try:
-            e.finished = takes_as_finished(dataset_state(e.output, e.case), e.case)
+            e.finished = finished_output(e.output, e.case)
         except RunError as exc:
             msg = (str(exc).replace("--resume: ", "")
                    .replace("or run without --resume to overwrite", "or move it away or write the sweep elsewhere (-o)")

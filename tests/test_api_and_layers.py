@@ -86,6 +86,11 @@ def test_unconverged_run_reports_the_failing_criterion(tmp_path, capsys):
                      r"judged from pass 4 on, this was pass 2\)", err), err
     ds = eulag.open_dataset(tmp_path / "o.nc")
     assert int(ds["converged"]) == 0 and "residual" in ds.attrs["stop_reason"]
+    # every pass a final pass: no early pass was judged, and the verdict says so
+    p.write_text(TINY_TOML.replace("max_passes = 4", "max_passes = 2"))
+    assert main(["run", str(p), "-o", str(tmp_path / "o2.nc"), "--quiet", "--no-plots"]) == 1
+    err = capsys.readouterr().err
+    assert "(no early pass was judged: all 2 passes were final passes)" in err and "pass 0" not in err, err
     crit = [str(c) for c in ds["criterion_name"].values]
     assert crit[:2] == ["gas_solve", "residual"]
     i = crit.index("residual")

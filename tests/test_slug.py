@@ -249,6 +249,17 @@ def test_a_stored_run_beyond_the_overlap_limit_is_judged_again(tmp_path, capsys)
                  "--no-plots"]) == 0
     with xr.open_dataset(tmp_path / "p.nc") as rerun:
         assert is_converged(rerun) and float(rerun["max_overlap_per_d"][0]) < 0.05
+    # a run that today's code itself judged unconverged is finished: running it again gives the
+    # same, so the three front-ends keep it
+    (tmp_path / "q.toml").write_text(re.sub(r'(?m)^name = .*$', 'name = "q"',
+                                            text.replace("[numerics]", "[numerics]\noverlap_limit = 1e-6", 1)))
+    assert main(["run", str(tmp_path / "q.toml"), "-o", str(tmp_path / "q.nc"), "--quiet", "--no-plots"]) == 1
+    stamp = (tmp_path / "q.nc").stat().st_mtime_ns
+    assert runs.dataset_state(tmp_path / "q.nc", runs.load_case(tmp_path / "q.toml")) == "unconverged"
+    assert plan_sweep([tmp_path / "q.toml"], tmp_path)[0].finished
+    assert main(["run", str(tmp_path / "q.toml"), "-o", str(tmp_path / "q.nc"), "--resume", "--quiet",
+                 "--no-plots"]) == 1
+    assert (tmp_path / "q.nc").stat().st_mtime_ns == stamp  # reused, not run again
 
 
 def test_resume_after_kill_is_bit_identical(tmp_path, monkeypatch):
