@@ -229,8 +229,13 @@ def check_report(case: dict, source=None) -> str:
         dp = float(c["experiment"]["pressure_drop"])
         lines.append(f"  measured     Delta p = {dp / 1e3:.4g} [kPa] over the pipe ({dp / L:.4g} [Pa m-1]; "
                      f"{dp / (dpdx * L):.3g} x the gas alone)")
+    from rans.mesh import wall_cell_thickness
+
+    wall, _ = wall_cell_thickness(D, n["first_cell_yplus"], U, rho, mu)
     lines += ["", "Numerics",
-              f"  section      {n['radial_cells']} x {n['azimuthal_cells']} cells, wall ring at y+ = {n['first_cell_yplus']:g}; "
+              f"  section      {n['radial_cells']} x {n['azimuthal_cells']} cells, wall ring at y+ = {n['first_cell_yplus']:g} "
+              f"({1e3 * wall:.3g} mm thick, {wall / c['solids']['diameter']:.2f} particle diameters: Delta p depends "
+              f"on it, docs/two-fluid.md); "
               f"{n['turbulence']}; at most {n['max_iterations']} outer iterations to a change of {n['tolerance']:g}"]
     if n["mode"] == "developing":
         xs = axial_stations(L, n["first_step_diameters"] * D, n["step_growth"], n["max_step_diameters"] * D)
