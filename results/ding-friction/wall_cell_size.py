@@ -1,7 +1,7 @@
 """Delta p against the size of the wall cell, the one mesh parameter the study's grid
 convergence (Table 5's analogue) holds fixed.
 
-    python results/ding-friction/wall_cell_size.py [> wall_cell_size.txt]
+    python results/ding-friction/wall_cell_size.py [--developing] [> wall_cell_size.txt]
 
 Fully developed cross-sections, cases/two_fluid/ding_qs*.toml on their 16 x 32 mesh with
 ``numerics.first_cell_yplus`` changed (the wall ring's centre at that y+ of the gas flow; the
@@ -10,7 +10,9 @@ and Delta p over 2.4 m for the three frictional models under both solids wall la
 paper's modified condition, ``walls.law = "ding"``, and Schneiderbauer et al.'s 2012 condition),
 with the parts of the force balance; then the modified Berzi model's Delta p at all five rates
 for each wall cell (the shape of Delta p against the gas rate).  The interior refinement at a
-fixed wall cell is the study's grid table.
+fixed wall cell is the study's grid table.  ``--developing`` prints instead the modified Berzi
+model's Delta p over the 2.4 m pipe marched from the paper's inlet (``numerics.mode =
+"developing"``) at Q_s = 0.8 for y+ 30, 100 and 170 (about 40 s each).
 """
 
 import tomllib
@@ -51,7 +53,32 @@ def solve(rate, model, law, yplus):
     return st.G * case["pipe"]["length"] / 1e3
 
 
+def developing():
+    import tempfile
+
+    import xarray as xr
+
+    import eulag
+
+    text = (CASES / "ding_qs0.8.toml").read_text()
+    print("modified Berzi, Q_s = 0.8, the pipe marched from the paper's inlet: Delta p over 2.4 m")
+    with tempfile.TemporaryDirectory() as tmp:
+        for yp in (30.0, 100.0, 170.0):
+            t = text.replace("first_cell_yplus = 30.0", f"first_cell_yplus = {yp}")
+            t = t.replace("[numerics]\n", '[numerics]\nmode = "developing"\n', 1)
+            p = Path(tmp) / f"dev{yp:g}.toml"
+            p.write_text(t.replace('name = "ding_qs0.8"', f'name = "dev{yp:g}"'))
+            eulag.run(p, out=Path(tmp) / f"dev{yp:g}.nc")
+            with xr.open_dataset(Path(tmp) / f"dev{yp:g}.nc") as ds:
+                print(f"  y+ {yp:5.0f}: {float(ds['pressure_drop']) / 1e3:.3f} kPa", flush=True)
+
+
 def main():
+    import sys
+
+    if "--developing" in sys.argv[1:]:
+        developing()
+        return
     base = load("0.8")
     print("Q_s = 0.8 m3/h (U_g 6.43 m/s, M_s 0.194 kg/s), 16 x 32 cells; measured 4.26 kPa")
     print(f"{'y+':>5} {'wall cell':>16} | " + " | ".join(f"{law:>32}" for law in ("ding", "schneiderbauer")))
