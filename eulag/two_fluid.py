@@ -233,7 +233,8 @@ def check_report(case: dict, source=None) -> str:
 
     wall, _ = wall_cell_thickness(D, n["first_cell_yplus"], U, rho, mu)
     lines += ["", "Numerics",
-              f"  section      {n['radial_cells']} x {n['azimuthal_cells']} cells, wall ring at y+ = {n['first_cell_yplus']:g} "
+              f"  section      {n['radial_cells']} x {n['azimuthal_cells']} cells, wall ring at y+ = "
+              f"{n['first_cell_yplus']:g} "
               f"({1e3 * wall:.3g} mm thick, {wall / c['solids']['diameter']:.2f} particle diameters: Delta p depends "
               f"on it, docs/two-fluid.md); "
               f"{n['turbulence']}; at most {n['max_iterations']} outer iterations to a change of {n['tolerance']:g}"]

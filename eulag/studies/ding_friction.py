@@ -77,7 +77,8 @@ SENSITIVITY = (
     ("wall friction μ_w [-]", "walls", "friction", (0.3,), 1.0,
      "Table 4: 0.5 (shown to locate the Δp gap; not used)"),
     ("wall cell: y+ of its centre (its thickness in d_s)", "numerics", "first_cell_yplus", (60.0, 100.0, 170.0),
-     1.0, "not given: y+ 30 (0.68 d_s); the paper's Mesh C cells average ≈ 0.43 mm (inferred D), a wall cell that thick ≈ y+ 115"),
+     1.0, "not given: y+ 30 (0.68 d_s); the paper's Mesh C cells average ≈ 0.43 mm (inferred D), "
+          "a wall cell that thick ≈ y+ 115"),
 )
 
 PROFILE_FIELDS = ("solids_fraction", "gas_ux", "solids_ux", "gas_k", "granular_temperature",

@@ -54,8 +54,8 @@ def _with_parcels(case: Case, parcels: int | None) -> Case:
 
 #: study options whose values make other cases (not a selection of the study's runs): a --report
 #: must repeat them as the runs were made
-_CASE_OPTIONS = (("--quick", "quick", None), ("--parcels", "parcels", int), ("--from-state", "from_state", lambda v: Path(v).name),
-                 ("--window", "window", float))
+_CASE_OPTIONS = (("--quick", "quick", None), ("--parcels", "parcels", int),
+                 ("--from-state", "from_state", lambda v: Path(v).name), ("--window", "window", float))
 
 
 def _check_report_settings(args, out: Path) -> None:
