@@ -460,9 +460,35 @@ def read_record(path: Path, case: Case) -> RunRecord | None:
         v = data.get(key)
         return math.nan if v is None else float(v)
 
+    status, message = data["status"], data.get("message", "")
+    if status == "converged" and getattr(case, "model", None) == "dem-darcy":
+        status, message = _slug_record_verdict(case, metrics, status, message)
     return RunRecord(data.get("name", path.name), case, path.parent / data.get("dataset", ""),
-                     data["status"], data.get("message", ""), num("time"), int(data.get("passes") or 0),
+                     status, message, num("time"), int(data.get("passes") or 0),
                      num("residual"), num("relaxation"), reused=True, metrics=metrics)
+
+
+def _slug_record_verdict(case, metrics: dict, status: str, message: str) -> tuple[str, str]:
+    """A slug run's record judged again by today's rules, as its dataset would be
+    (``eulag.slug.verdict``: no grain lost, the largest overlap within ``numerics.overlap_limit``),
+    from the grains lost and the largest overlap the record keeps."""
+    from eulag.slug import _comparable_stored, validate_slug_case
+
+    try:  # (the state file a continued run started from may be gone: not needed here)
+        limit = validate_slug_case(_comparable_stored(case.data))["numerics"]["overlap_limit"]
+    except (ValueError, KeyError, TypeError):
+        return status, message
+    problems = []
+    lost = metrics.get("grains_lost")
+    if lost:
+        problems.append(f"{int(lost)} grains lost")
+    overlap = metrics.get("max_overlap_per_d")
+    if overlap is not None and math.isfinite(float(overlap)) and float(overlap) > limit:
+        problems.append(f"the largest grain overlap reached {100 * float(overlap):.3g} % of d "
+                        f"(numerics.overlap_limit {100 * limit:g} %)")
+    if problems:
+        return "not converged", "finished, but " + "; ".join(problems) + " (judged again from the run's record)"
+    return status, message
 
 
 def _describe_numerics(case) -> str:
