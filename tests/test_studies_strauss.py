@@ -311,3 +311,20 @@ def test_the_comparison_judges_the_layers_of_the_cross_section():
     rows = {r["quantity"]: r for r in strauss.comparison(plan, records)}
     row = rows["layers in a slug at half the length: uppermost minus lowest [m/s]"]
     assert row["verdict"] == "—" and row["here"].startswith("no records of the cross-section")
+
+
+def test_a_slug_runs_record_is_judged_again_by_todays_rules(tmp_path):
+    """A record stored as converged (before the overlap rule) whose largest overlap is beyond
+    numerics.overlap_limit, or with grains lost, reads as not converged, as its dataset would."""
+    from eulag import runs
+    from eulag.config import CASES_DIR
+
+    case = runs.load_case(CASES_DIR / "slug" / "periodic_slug.toml")
+    path = tmp_path / "p.record.json"
+    for metrics, status, words in (({"max_overlap_per_d": 0.03, "grains_lost": 0}, "converged", None),
+                                   ({"max_overlap_per_d": 0.09, "grains_lost": 0}, "not converged", "9 % of d"),
+                                   ({"max_overlap_per_d": 0.01, "grains_lost": 2}, "not converged", "2 grains lost")):
+        studies.write_record(path, case, studies.RunRecord("p", case, tmp_path / "p.nc", "converged",
+                                                           metrics=metrics))
+        rec = studies.read_record(path, case)
+        assert rec.status == status and (words is None or words in rec.message), (metrics, rec.message)
