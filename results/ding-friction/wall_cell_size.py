@@ -42,15 +42,25 @@ def thickness_in_grains(case, yplus):
     return h / case["solids"]["diameter"], h
 
 
-def solve(rate, model, law, yplus):
+def solve(rate, model, law, yplus, parts=False):
     case = load(rate)
     case["friction"]["model"] = model
     case.setdefault("walls", {})["law"] = law
     case["numerics"]["first_cell_yplus"] = yplus
-    s, st, ok, _ = solve_section(problem_from_case(case))
+    s, st, ok, c = solve_section(problem_from_case(case))
     if not ok:
         return None
-    return st.G * case["pipe"]["length"] / 1e3
+    dp = st.G * case["pipe"]["length"] / 1e3
+    if not parts:
+        return dp
+    # the wall forces per unit length, as kPa over the pipe (G A = gas wall + solids wall), split
+    # between the wall cells under the deposit (alpha_s > alpha_min) and the others
+    w, arc = s.sec.wall, s.sec.wall_arc
+    under = c["a"][w] > case["friction"]["alpha_min"]
+    to_kpa = case["pipe"]["length"] / s.Atot / 1e3
+    gas, sol = s.hg * st.ug[w] * arc * to_kpa, s.hs * st.us[w] * arc * to_kpa
+    return dp, {"gas under the deposit": gas[under].sum(), "gas elsewhere": gas[~under].sum(),
+                "solids under the deposit": sol[under].sum(), "solids elsewhere": sol[~under].sum()}
 
 
 def developing():
@@ -92,6 +102,11 @@ def main():
                 cells.append("not conv." if dp is None else f"{dp:5.2f} {100 * (dp / MEASURED_QS08_KPA - 1):+4.0f}%")
         print(f"{yp:5.0f} {1e3 * h:6.3f} mm {n:4.2f} d_s | " + " | ".join(
             " ".join(f"{c:>10}" for c in cells[i:i + 3]) for i in (0, 3)), flush=True)
+    print()
+    print("modified Berzi, walls.law = ding, Q_s = 0.8: the wall forces as kPa over the pipe")
+    for yp in YPLUS:
+        dp, parts = solve("0.8", "berzi", "ding", yp, parts=True)
+        print(f"{yp:5.0f} Delta p {dp:5.2f}: " + ", ".join(f"{k} {v:.2f}" for k, v in parts.items()), flush=True)
     print()
     print("modified Berzi, walls.law = ding: Delta p [kPa] against Q_s [m3/h]")
     print(f"{'y+':>5} " + " ".join(f"{r:>7}" for r in RATES) + "   lowest at")
