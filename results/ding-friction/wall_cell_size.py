@@ -83,6 +83,14 @@ def developing():
                 print(f"  y+ {yp:5.0f}: {float(ds['pressure_drop']) / 1e3:.3f} kPa", flush=True)
 
 
+def solve_gas_alone(yplus):
+    case = load("0.8")
+    case["solids"]["mass_flow"] = 1e-4
+    case["numerics"]["first_cell_yplus"] = yplus
+    s, st, ok, _ = solve_section(problem_from_case(case))
+    return st.G * case["pipe"]["length"] / 1e3 if ok else float("nan")
+
+
 def main():
     import sys
 
@@ -102,6 +110,9 @@ def main():
                 cells.append("not conv." if dp is None else f"{dp:5.2f} {100 * (dp / MEASURED_QS08_KPA - 1):+4.0f}%")
         print(f"{yp:5.0f} {1e3 * h:6.3f} mm {n:4.2f} d_s | " + " | ".join(
             " ".join(f"{c:>10}" for c in cells[i:i + 3]) for i in (0, 3)), flush=True)
+    print()
+    print("the gas alone (solids mass flow 1e-4 kg/s), Q_s = 0.8 gas rate: Delta p [kPa] "
+          + ", ".join(f"y+ {yp:g}: {solve_gas_alone(yp):.3f}" for yp in YPLUS))
     print()
     print("modified Berzi, walls.law = ding, Q_s = 0.8: the wall forces as kPa over the pipe")
     for yp in YPLUS:
