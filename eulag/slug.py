@@ -907,15 +907,31 @@ def run_slug(case: dict, out, resume=False, progress=True):
     return ds
 
 
+def overlap_limit(stored_case: dict) -> float:
+    """``numerics.overlap_limit`` of a stored slug case (a dataset's or a run record's)."""
+    return validate_slug_case(_comparable_stored(stored_case))["numerics"]["overlap_limit"]
+
+
 def verdict(ds) -> tuple[bool, str]:
     """(converged, stop_reason) of a finished slug dataset by today's rules: no grain lost, and the
     largest overlap within the case's ``numerics.overlap_limit`` (:func:`problem_overlap`)."""
-    limit = validate_slug_case(_comparable_stored(json.loads(ds.attrs["case"])))["numerics"]["overlap_limit"]
+    limit = overlap_limit(json.loads(ds.attrs["case"]))
     lost = int(np.asarray(ds["grains_lost"].values)) if "grains_lost" in ds else int(ds.attrs.get("grains_lost", 0))
     problems = [f"{lost} grains lost"] if lost else []
     overlap = problem_overlap(ds, limit)
     if overlap:
         problems.append(overlap)
+    return (not problems), ("finished, but " + "; ".join(problems) if problems else "finished")
+
+
+def record_verdict(stored_case: dict, grains_lost, max_overlap) -> tuple[bool, str]:
+    """:func:`verdict` from what a study's run record keeps of the run (the grains lost and the
+    largest overlap / d) instead of its dataset."""
+    limit = overlap_limit(stored_case)
+    problems = [f"{int(grains_lost)} grains lost"] if grains_lost else []
+    if max_overlap is not None and math.isfinite(float(max_overlap)) and float(max_overlap) > limit:
+        problems.append(f"the largest grain overlap reached {100 * float(max_overlap):.3g} % of d "
+                        f"(numerics.overlap_limit {100 * limit:g} %)")
     return (not problems), ("finished, but " + "; ".join(problems) if problems else "finished")
 
 

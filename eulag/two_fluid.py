@@ -162,11 +162,8 @@ def validate_two_fluid_case(case: dict) -> None:
     if not solids["density"] > gas["density"]:
         raise ValueError(f"solids.density = {_fmt(solids['density'])}: allowed a number > gas.density "
                          f"({_fmt(gas['density'])}): particles heavier than the gas")
-    from rans.mesh import wall_cell_thickness
-
     yplus = case.get("numerics", {}).get("first_cell_yplus", SCHEMA["numerics"]["first_cell_yplus"][0])
-    thickness, _ = wall_cell_thickness(pipe["diameter"], yplus, gas["superficial_velocity"], gas["density"],
-                                       gas["viscosity"])
+    thickness = wall_ring_thickness(case, yplus)
     if not 0.0 < thickness < 0.5 * pipe["diameter"]:
         raise ValueError(f"numerics.first_cell_yplus = {_fmt(yplus)}: allowed a y+ whose wall cell fits the pipe "
                          f"(here {thickness:.3g} m thick in a pipe of radius {0.5 * pipe['diameter']:g} m)")
@@ -229,9 +226,7 @@ def check_report(case: dict, source=None) -> str:
         dp = float(c["experiment"]["pressure_drop"])
         lines.append(f"  measured     Delta p = {dp / 1e3:.4g} [kPa] over the pipe ({dp / L:.4g} [Pa m-1]; "
                      f"{dp / (dpdx * L):.3g} x the gas alone)")
-    from rans.mesh import wall_cell_thickness
-
-    wall, _ = wall_cell_thickness(D, n["first_cell_yplus"], U, rho, mu)
+    wall = wall_ring_thickness(c, n["first_cell_yplus"])
     lines += ["", "Numerics",
               f"  section      {n['radial_cells']} x {n['azimuthal_cells']} cells, wall ring at y+ = "
               f"{n['first_cell_yplus']:g} "
@@ -245,6 +240,16 @@ def check_report(case: dict, source=None) -> str:
     else:
         lines.append(f"  mode         fully developed (the pressure gradient times L = {L:g} m gives Delta p)")
     return "\n".join(lines)
+
+
+def wall_ring_thickness(case: dict, yplus: float) -> float:
+    """Thickness [m] of the section's wall ring whose centre sits at ``yplus`` of the case's gas
+    flow (``rans.mesh.wall_cell_thickness``, as the mesh is built)."""
+    from rans.mesh import wall_cell_thickness
+
+    pipe, gas = case["pipe"], case["gas"]
+    return wall_cell_thickness(pipe["diameter"], yplus, gas["superficial_velocity"], gas["density"],
+                               gas["viscosity"])[0]
 
 
 def problem_from_case(case: dict):

@@ -137,7 +137,8 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
         labels = [v.strip() for v in args.variants.split(",") if v.strip()]
         bad = [v for v in labels if v not in known]
         if bad or not labels:
-            raise _BadInput(f"--variants {args.variants}: unknown {', '.join(bad) or '(none given)'}; allowed: {', '.join(known)}")
+            raise _BadInput(f"--variants {args.variants}: unknown {', '.join(bad) or '(none given)'}; "
+                            f"allowed: {', '.join(known)}")
     try:
         runs_ = ablation_cases(args.quick, names, labels, getattr(args, "parcels", None))
     except CaseError as exc:

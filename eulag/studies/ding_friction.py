@@ -391,16 +391,6 @@ GRID_COLUMNS = [Column("model", "friction model"), Column("mesh", "mesh (radial 
                 Column("time_s", "run time [s]", "{:.1f}")]
 
 
-def _wall_cell_grains(data: dict, yplus: float) -> float:
-    """The wall ring's thickness in solids diameters for a case's gas flow at ``yplus``."""
-    from rans.mesh import wall_cell_thickness
-
-    g = data["gas"]
-    h, _ = wall_cell_thickness(data["pipe"]["diameter"], yplus, g["superficial_velocity"], g["density"],
-                               g["viscosity"])
-    return h / data["solids"]["diameter"]
-
-
 def _sensitivity_rows(plan, records) -> list[dict]:
     base = next((records[n] for n, (k, info, c) in plan.items()
                  if k == "matrix" and info["model"] == "berzi" and info["rate"] == "0.8"), None)
@@ -414,7 +404,9 @@ def _sensitivity_rows(plan, records) -> list[dict]:
         v, scale = info["value"], info["scale"]
         value = f"{v * scale:g}" if scale else str(v)
         if info["key"] == "first_cell_yplus":
-            value += f" ({_wall_cell_grains(c.data, v):.2f} d_s)"
+            from eulag.two_fluid import wall_ring_thickness
+
+            value += f" ({wall_ring_thickness(c.data, v) / c.data['solids']['diameter']:.2f} d_s)"
         rows.append({"input": info["label"], "value": value,
                      "note": notes[info["label"]], "dp_kPa": dp / 1e3 if dp is not None else None,
                      "change": (dp / base_dp - 1) * 100 if (dp is not None and base_dp) else None,

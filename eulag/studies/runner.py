@@ -470,25 +470,14 @@ def read_record(path: Path, case: Case) -> RunRecord | None:
 
 def _slug_record_verdict(case, metrics: dict, status: str, message: str) -> tuple[str, str]:
     """A slug run's record judged again by today's rules, as its dataset would be
-    (``eulag.slug.verdict``: no grain lost, the largest overlap within ``numerics.overlap_limit``),
-    from the grains lost and the largest overlap the record keeps."""
-    from eulag.slug import _comparable_stored, validate_slug_case
+    (``eulag.slug.record_verdict``)."""
+    from eulag.slug import record_verdict
 
-    try:  # (the state file a continued run started from may be gone: not needed here)
-        limit = validate_slug_case(_comparable_stored(case.data))["numerics"]["overlap_limit"]
+    try:
+        ok, reason = record_verdict(case.data, metrics.get("grains_lost"), metrics.get("max_overlap_per_d"))
     except (ValueError, KeyError, TypeError):
         return status, message
-    problems = []
-    lost = metrics.get("grains_lost")
-    if lost:
-        problems.append(f"{int(lost)} grains lost")
-    overlap = metrics.get("max_overlap_per_d")
-    if overlap is not None and math.isfinite(float(overlap)) and float(overlap) > limit:
-        problems.append(f"the largest grain overlap reached {100 * float(overlap):.3g} % of d "
-                        f"(numerics.overlap_limit {100 * limit:g} %)")
-    if problems:
-        return "not converged", "finished, but " + "; ".join(problems) + " (judged again from the run's record)"
-    return status, message
+    return (status, message) if ok else ("not converged", reason + " (judged again from the run's record)")
 
 
 def _describe_numerics(case) -> str:

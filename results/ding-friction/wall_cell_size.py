@@ -20,8 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from eulag.two_fluid import problem_from_case
-from rans.mesh import wall_cell_thickness
+from eulag.two_fluid import problem_from_case, wall_ring_thickness
 from tfm.section import solve_section
 
 CASES = Path(__file__).resolve().parents[2] / "cases" / "two_fluid"
@@ -37,8 +36,7 @@ def load(rate):
 
 
 def thickness_in_grains(case, yplus):
-    g, p = case["gas"], case["pipe"]
-    h, _ = wall_cell_thickness(p["diameter"], yplus, g["superficial_velocity"], g["density"], g["viscosity"])
+    h = wall_ring_thickness(case, yplus)
     return h / case["solids"]["diameter"], h
 
 
