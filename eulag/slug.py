@@ -479,8 +479,8 @@ class _Simulation:
         w = (1.0 - self.phi) * a
         ux1 = (self.u[..., 0] * w).sum(axis=(1, 2)) / np.maximum(w.sum(axis=(1, 2)), 1e-300)
         p1 = (self.darcy.p * a).sum(axis=(1, 2)) / grid.cross_area
-        if self.periodic:
-            p1 = p1 - self.darcy.G * (grid.x - 0.5 * self.L)
+        if self.periodic:  # the total pressure: P' + G (x - L/2), G the mean gradient (darcy.gradient)
+            p1 = p1 + self.darcy.G * (grid.x - 0.5 * self.L)
         free = g.status[:n] == self.FREE
         x = g.pos[:n, 0]
         in_tube = free & (x >= 0) & (x < self.L)

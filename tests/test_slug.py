@@ -164,6 +164,15 @@ def test_periodic_case_runs_without_losses(tmp_path):
         assert "units" in v.attrs and "long_name" in v.attrs
     assert (ds.grains_in_tube == ds.grains_in_tube[0]).all()  # periodic: nothing enters or leaves
     assert float(ds.pressure_drop[-1]) > 0
+    # the stored pressure is the total one: it falls along the tube by the recorded drop, and
+    # across the slug (the dense slices) it falls (Darcy: the gas pushes the plug downstream)
+    p, x = ds.gas_pressure.values[-1], ds.x.values
+    dx = x[1] - x[0]
+    drop_cells = p[0] - p[-1] + (p[-1] - p[-2] + p[1] - p[0]) / 2  # inlet face to outlet face, linear ends
+    assert abs(drop_cells - float(ds.pressure_drop[-1])) < 0.1 * float(ds.pressure_drop[-1]), (drop_cells,)
+    dense = ds.porosity.values[-1] < slug.SLUG_POROSITY
+    grad = np.gradient(p, dx)
+    assert grad[dense].mean() < 0 and grad[dense].mean() < grad[~dense].mean()
     assert not (tmp_path / "p.nc.checkpoint").exists()
     # the recorded cross-section (SMH Figs. 17-19): finite, a solids fraction, and the layers'
     # grains those of the slice, whose solids volume the image holds
