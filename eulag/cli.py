@@ -333,7 +333,8 @@ def _coupled_summary(case, loop, ds, out) -> str:
         f"{float(ds.solids_pressure_drop_ratio):.4g}, lambda_Z {float(ds.additional_pressure_loss_coefficient):.4g}",
         *_replica_pressure_gradient_line(ds),
         f"  secondary    {strength}",
-        f"  parcels      {int(h.parcels[-1])} per final pass; lost {int(sum(h.lost))}, stuck {int(sum(h.stuck))}",
+        f"  parcels      {int(h.parcels[-1])} per final pass; stuck {int(ds.attrs.get('parcels_stuck_final', 0))} in the "
+        f"final passes ({int(sum(h.stuck))} in all passes), lost {int(sum(h.lost))}",
         *_collision_momentum_line(case, h),
         *_collision_force_line(case, ds),
         *_conveying_lines(case, ds),

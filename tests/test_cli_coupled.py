@@ -90,6 +90,8 @@ BAD = {
     "particle lighter than the gas": ("density = 1020.0", "density = 1.0"),
     "loading as a string": ("mass_loading = 0.2", 'mass_loading = "0.2"'),
     "negative loading": ("mass_loading = 0.2", "mass_loading = -2.2"),
+    "zero loading (no particle mass flow; a single-phase case leaves out [particles])":
+        ("mass_loading = 0.2", "mass_loading = 0.0"),
     "unknown particle key": ("mass_loading = 0.2", "mass_loading = 0.2\nshape = \"sphere\""),
     "roughness beyond 45 deg": ("roughness_angle_std_deg = 3.0", "roughness_angle_std_deg = 60.0"),
     "relaxation zero": ("seed = 5", "seed = 5\nrelaxation = 0.0"),

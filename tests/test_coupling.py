@@ -1033,3 +1033,12 @@ def test_resume_takes_a_finished_unconverged_run_whose_checkpoint_is_gone_as_fin
     status = main(["run", str(toml), "-o", str(out), "--resume", "--quiet"])
     err = capsys.readouterr().err
     assert status == 1 and "converged = false" in err and "not converged" in err, err
+
+
+def test_parcels_stopped_by_the_residence_cap_keep_the_run_unconverged():
+    """A residence-time cap shorter than the transit stops every parcel: the particle mass never
+    reaches the outlet, and the mass-balance criterion (|in - out| / in) says so."""
+    ds = run(small_case(**{"numerics.residence_cap": 0.01, "numerics.max_passes": 5}))
+    assert ds.attrs["parcels_exited_final"] == 0 and ds.attrs["parcels_stuck_final"] > 0
+    assert not bool(ds.converged)
+    assert "mass_balance 1 >= 0.01" in ds.attrs["stop_reason"], ds.attrs["stop_reason"]
