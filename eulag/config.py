@@ -1142,6 +1142,48 @@ def case_keys_from_dataset(attrs: dict) -> dict:
     return out
 
 
+def _flat(d: dict, prefix: str = "") -> dict:
+    """A nested case (TOML tables) as flattened ``"section.key"`` entries."""
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def _plain(v: Any) -> Any:
+    """A stored value as the comparison of :func:`case_differences` sees it (arrays and numpy
+    scalars as Python values; a one-element list as its element: netCDF stores it so)."""
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, (list, tuple)):
+        v = [_plain(x) for x in v]
+        return v[0] if len(v) == 1 else v
+    return v
+
+
+def case_differences(stored: dict, mine: dict, *, there: str = "stored", limit: int = 3) -> str:
+    """The keys in which two cases differ, for a message: ``"numerics.parcels = 1000 stored,
+    2000 in this case"``, at most ``limit`` of them, "; "-separated ("" when none is found).
+    ``stored`` and ``mine``: flattened (``"section.key"``) or nested (TOML tables) dicts."""
+    a, b = _flat(stored), _flat(mine)
+    missing = object()
+    rows = []
+    for key in sorted(set(a) | set(b)):
+        x, y = _plain(a.get(key, missing)), _plain(b.get(key, missing))
+        if x == y or (isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y)):
+            continue
+        shown = ["(not set)" if v is missing else _fmt(v) for v in (x, y)]
+        shown = [t if len(t) <= 40 else t[:37] + "..." for t in shown]
+        rows.append(f"{key} = {shown[0]} {there}, {shown[1]} in this case")
+    more = f"; and {len(rows) - limit} more" if len(rows) > limit else ""
+    return "; ".join(rows[:limit]) + more
+
+
 def packaged_cases() -> dict[str, Path]:
     """The case files shipped with eulag (``cases/`` and its folders), by name (file stem)."""
     return {p.stem: p for p in sorted(CASES_DIR.rglob("*.toml"))}

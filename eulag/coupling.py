@@ -569,7 +569,10 @@ def checkpoint_problem(meta, residual, case):
     old, new = stored.get(key), mine.get(key)
     stored[key] = new
     if _canonical(stored) != _canonical(mine):
-        return "checkpoint of a different case"
+        from eulag.config import case_differences, comparable_attrs
+
+        what = case_differences(comparable_attrs(stored), comparable_attrs(mine), there="in the checkpoint")
+        return "checkpoint of a different case" + (f" ({what})" if what else "")
     if old == new or old is None:
         return None
     n = case.numerics

@@ -308,9 +308,28 @@ def dataset_state(out: str | Path, case) -> str | None:
         raise BadInput(f"--resume: {out} exists but cannot be read as a dataset ({short_reason(exc)}); allowed: "
                        "this case's output, or a path that does not exist yet") from None
     if not same_case(attrs, case):
-        raise BadInput(f"--resume: {out} holds a different case; allowed: the output of this case, "
-                       "or run without --resume to overwrite")
+        what = case_difference(attrs, case)
+        raise BadInput(f"--resume: {out} holds a different case{f' ({what})' if what else ''}; allowed: the output "
+                       "of this case, or run without --resume to overwrite")
     return state
+
+
+def case_difference(attrs: dict, case) -> str:
+    """The keys in which the case stored in a dataset's global attributes ``attrs`` differs from
+    ``case`` (:func:`eulag.config.case_differences`; "" when none can be named)."""
+    from eulag.config import case_differences, case_keys_from_dataset, comparable_attrs
+
+    try:
+        if isinstance(case, ModelCase):
+            stored, mine = getattr(_model_module(case.model), "compared_cases")(attrs, case.data)
+        else:
+            stored = comparable_attrs(case_keys_from_dataset(attrs))
+            mine = comparable_attrs(case.to_attrs())
+        if not isinstance(stored, dict):
+            return ""
+        return case_differences(stored, mine)
+    except Exception:  # noqa: BLE001 - a foreign file: the message then names no key
+        return ""
 
 
 def stored_state(ds) -> str:
@@ -412,18 +431,27 @@ def execute(case, out: str | Path | None = None, *, resume: bool = False, parcel
 
 
 def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
-    """Before any work on ``out``: with ``resume`` an existing output must hold this case
-    (:func:`dataset_state`: BadInput for another case or a file that is not a dataset, whether a
-    checkpoint exists or not), and
-    an existing checkpoint must be one this case can continue (BadInput naming it otherwise);
-    without, the checkpoint of an earlier run is removed, and ``notify`` says so.  Then the
+    """Before any work on ``out``: with ``resume`` a checkpoint beside it that this case can
+    continue is continued, whatever ``out`` holds (a run of this case started there, and its
+    dataset replaces the file when it ends; ``notify`` says so); without such a checkpoint an
+    existing output must hold this case (:func:`dataset_state`: BadInput for another case, naming
+    the keys that differ, or for a file that is not a dataset), and an existing checkpoint must be
+    one this case can continue (BadInput naming it otherwise); without ``resume``, the checkpoint
+    of an earlier run is removed, and ``notify`` says so.  Then the
     temporary files of a write that a kill interrupted (``eulag.files.atomic_write``:
     ``.<out name>.<8 characters>.tmp``, the checkpoint's too) are removed."""
     single_phase = isinstance(case, Case) and case.particles is None
     ckpt = None if single_phase else checkpoint_path(out, case)
     if resume:
-        dataset_state(out, case)  # raises for another case's output or an unreadable one
         state = checkpoint_state(ckpt, case) if ckpt is not None else None
+        if state is None or state[2] is not None:
+            dataset_state(out, case)  # raises for another case's output or an unreadable one
+        elif out.is_file() and notify is not None:  # a checkpoint of this case continues, whatever is at out
+            try:
+                dataset_state(out, case)
+            except BadInput:
+                notify(f"{out}: holds another run's dataset; the checkpoint beside it is this case's and "
+                       "continues (the dataset is replaced when the run ends)")
         if state is not None and state[2] is not None:
             problem = state[2].removeprefix(f"{ckpt}: ")
             raise BadInput(f"--resume: {ckpt}: {problem}; allowed: a checkpoint of this case (remove it, "

@@ -757,7 +757,13 @@ def checkpoint_problem(ckpt, case: dict):
         stored = _checkpoint_key(json.loads(key))  # keys that came later dropped at their former value
     except (ValueError, TypeError, AttributeError):
         return "checkpoint with an unreadable case"
-    return None if stored == _checkpoint_key(validate_slug_case(case)) else "checkpoint of a different case"
+    mine = _checkpoint_key(validate_slug_case(case))
+    if stored == mine:
+        return None
+    from eulag.config import case_differences
+
+    what = case_differences(json.loads(stored), json.loads(mine), there="in the checkpoint")
+    return "checkpoint of a different case" + (f" ({what})" if what else "")
 
 
 #: Keys a continued run (``initial.state``) must share with the case that wrote the state: the
@@ -843,13 +849,20 @@ def save_state(checkpoint, out) -> Path:
     return out
 
 
+def compared_cases(attrs: dict, case: dict) -> tuple[dict, dict]:
+    """The stored case of a dataset's attributes ``attrs`` (the ``case`` attribute) and ``case``
+    resolved, as :func:`same_case` compares them."""
+    return _comparable(json.loads(attrs.get("case", "null"))), _comparable(validate_slug_case(case))
+
+
 def same_case(attrs: dict, case: dict) -> bool:
     """Whether a dataset's attributes ``attrs`` are those of a result of ``case`` (its resolved
     case, stored as the ``case`` attribute)."""
     try:
-        return _comparable(json.loads(attrs.get("case", "null"))) == _comparable(validate_slug_case(case))
-    except (ValueError, KeyError, TypeError):
+        stored, mine = compared_cases(attrs, case)
+    except (ValueError, KeyError, TypeError, AttributeError):
         return False
+    return stored == mine
 
 
 def run_slug(case: dict, out, resume=False, progress=True):

@@ -142,7 +142,7 @@ def _checkpoint_problem(ckpt, case):
     if state is None or state[2] is None:
         return None
     problem = state[2]
-    if problem == "checkpoint of a different case":
+    if problem.startswith("checkpoint of a different case") and "(" not in problem:
         problem += " (another case file or --parcels)"
     prefix = "" if problem.startswith(str(ckpt)) else f"{ckpt}: "
     return f"{prefix}{problem}; remove it to start the case afresh"

@@ -436,7 +436,22 @@ def checkpoint_problem(ckpt, case: dict):
         from eulag.arguments import unreadable_archive_reason
 
         return f"cannot be read ({unreadable_archive_reason(exc)})"
-    return None if key == dataset_key(case) else "checkpoint of a different case"
+    mine = dataset_key(case)
+    if key == mine:
+        return None
+    from eulag.config import case_differences
+
+    try:
+        what = case_differences(json.loads(key), json.loads(mine), there="in the checkpoint")
+    except (ValueError, TypeError):
+        what = ""
+    return "checkpoint of a different case" + (f" ({what})" if what else "")
+
+
+def compared_cases(attrs: dict, case: dict) -> tuple[dict, dict]:
+    """The stored case of a dataset's attributes ``attrs`` (``case_json``) and ``case`` as
+    :func:`same_case` compares them (:func:`dataset_key`)."""
+    return json.loads(attrs.get("case_json", "null")), json.loads(dataset_key(case))
 
 
 def same_case(attrs: dict, case: dict) -> bool:

@@ -468,11 +468,12 @@ def test_resume_refuses_another_cases_output_and_unusable_checkpoints(tmp_path, 
     # another case's output is never overwritten by a resume, with a checkpoint beside it or not
     status, out, err = run_cli(capsys, "run", "b.toml", "-o", "a.nc", "--resume", "--quiet", "--no-plots")
     assert status == 2 and len(err.splitlines()) == 1 and "holds a different case" in err, err
+    assert "(kinetic.restitution = 0.7 stored, 0.8 in this case)" in err, err
     assert (tmp_path / "a.nc").read_bytes() == kept
     # a checkpoint of another case, or one that is not an archive, is named and refused
     (tmp_path / "a.nc").unlink()
     status, out, err = run_cli(capsys, "run", "b.toml", "-o", "a.nc", "--resume", "--quiet", "--no-plots")
-    assert status == 2 and "a.nc.checkpoint.npz: checkpoint of a different case" in err, err
+    assert status == 2 and "a.nc.checkpoint.npz: checkpoint of a different case (kinetic.restitution" in err, err
     good = ckpt.read_bytes()
     ckpt.write_bytes(good[:len(good) // 2])
     status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--resume", "--quiet", "--no-plots")
@@ -495,3 +496,24 @@ def test_resume_refuses_another_cases_output_and_unusable_checkpoints(tmp_path, 
     status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--resume", "--no-plots")
     assert status == 1 and "already a finished run" in out and "converged = false" in err, (out, err)
     assert (tmp_path / "a.nc").stat().st_mtime_ns == before and not ckpt.exists()
+
+
+def test_resume_continues_this_cases_checkpoint_beside_another_runs_output(tmp_path, monkeypatch, capsys):
+    """A run started (without --resume) on an output that held another run's dataset and then
+    interrupted keeps its checkpoint beside that dataset: --resume continues the checkpoint and
+    replaces the dataset, instead of refusing the output as another case's."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.toml").write_text(_tiny_two_fluid(0.8))
+    (tmp_path / "b.toml").write_text(_tiny_two_fluid(0.7))
+    assert run_cli(capsys, "run", "b.toml", "-o", "b.nc", "--quiet", "--no-plots")[0] == 1  # unconverged
+    assert run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--quiet", "--no-plots")[0] == 0
+    # b's checkpoint beside a's dataset: what an interrupted "eulag run b.toml -o a.nc" leaves
+    (tmp_path / "a.nc.checkpoint.npz").write_bytes((tmp_path / "b.nc.checkpoint.npz").read_bytes())
+    status, out, err = run_cli(capsys, "run", "b.toml", "-o", "a.nc", "--resume", "--no-plots")
+    assert status == 1, err  # continued (and unconverged again after its iterations), not bad input
+    assert "the checkpoint beside it is this case's and continues" in err, err
+    import xarray as xr
+
+    from eulag import runs
+    with xr.open_dataset(tmp_path / "a.nc") as ds:
+        assert runs.same_case(dict(ds.attrs), runs.load_case("b.toml"))

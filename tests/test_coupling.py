@@ -248,7 +248,8 @@ def test_pass_limit_changes_that_would_have_acted_are_refused(tmp_path):
     below = above.copy()
     below[34 - w:34] = 0.5 * tol  # passes 31-34: what the judgement at pass 35 saw
     assert "raising the relaxation" in coupling.checkpoint_problem(later, below, new)
-    assert "different case" in coupling.checkpoint_problem(meta, residual, small_case(**{"numerics.seed": 4}))
+    assert coupling.checkpoint_problem(meta, residual, small_case(**{"numerics.seed": 4})) == (
+        "checkpoint of a different case (numerics.seed = 3 in the checkpoint, 4 in this case)")
     with pytest.raises(RuntimeError, match="final passes before pass 2"):
         CouplingLoop(small_case(**{"numerics.max_passes": 3}), checkpoint=ckpt, resume=True)
 
@@ -1042,3 +1043,14 @@ def test_parcels_stopped_by_the_residence_cap_keep_the_run_unconverged():
     assert ds.attrs["parcels_exited_final"] == 0 and ds.attrs["parcels_stuck_final"] > 0
     assert not bool(ds.converged)
     assert "mass_balance 1 >= 0.01" in ds.attrs["stop_reason"], ds.attrs["stop_reason"]
+
+
+def test_a_different_case_is_named_by_the_keys_that_differ(uninterrupted):
+    """--resume against another case's output or checkpoint names the keys that differ, with the
+    stored and the present value (eulag.config.case_differences)."""
+    from eulag import runs
+
+    assert runs.case_difference(dict(uninterrupted.attrs), small_case()) == ""
+    other = small_case(**{"numerics.seed": 4, "numerics.parcels": 2000})
+    assert runs.case_difference(dict(uninterrupted.attrs), other) == (
+        "numerics.parcels = 1500 stored, 2000 in this case; numerics.seed = 3 stored, 4 in this case")

@@ -318,11 +318,12 @@ def test_resume_refuses_a_checkpoint_of_another_case(tmp_path, monkeypatch):
     assert slug.checkpoint_problem(ckpt, longer) is None
     other = _short_periodic(end=0.03, ckpt=0.01)
     other["grains"]["friction"] = 0.3
-    assert slug.checkpoint_problem(ckpt, other) == "checkpoint of a different case"
+    differs = "checkpoint of a different case (grains.friction = 0.5 in the checkpoint, 0.3 in this case)"
+    assert slug.checkpoint_problem(ckpt, other) == differs
     with pytest.raises(ValueError, match="checkpoint of a different case"):
         slug.run_slug(other, tmp_path / "c.nc", resume=True, progress=False)
     mc = runs.ModelCase("dem-darcy", "c", other)
-    assert runs.checkpoint_state(ckpt, mc)[2] == "checkpoint of a different case"
+    assert runs.checkpoint_state(ckpt, mc)[2] == differs
     assert runs.checkpoint_state(ckpt, runs.ModelCase("dem-darcy", "c", case))[2] is None
 
 
@@ -409,10 +410,10 @@ def test_cases_stored_before_a_key_existed_are_the_same_case(tmp_path, section, 
         assert slug.checkpoint_problem(ckpt, case) is None
         case[section][key] = other
         assert not slug.same_case({"case": json.dumps(old)}, case)
-        assert slug.checkpoint_problem(ckpt, case) == "checkpoint of a different case"
+        assert slug.checkpoint_problem(ckpt, case).startswith(f"checkpoint of a different case ({section}.{key} = ")
     other = _short_periodic()
     other["grains"]["friction"] = 0.3
-    assert slug.checkpoint_problem(ckpt, other) == "checkpoint of a different case"
+    assert slug.checkpoint_problem(ckpt, other).startswith("checkpoint of a different case (grains.friction")
 
 
 def test_feed_block_shorter_than_three_search_cells_is_one_line_error():
