@@ -1085,10 +1085,15 @@ class CouplingLoop:
                      if sc is not None else "")
             return (f"not converged: the loop converged after pass {self.converged_at}, but the gas solve on "
                     f"the {self.window_n} final passes' averaged sources did not reach gas_tolerance{where}")
+        n = self.case.numerics
+        if self.pass_index - self.window_n < 1:
+            return (f"not converged: max_passes = {n.max_passes} leaves no early pass to judge convergence "
+                    f"after (all {self.window_n} passes were final passes; allowed for a look at the sources, "
+                    f"a converged run needs max_passes > average_passes = {n.average_passes})")
         failed = [c.line() for c in self.criteria if not c.met]
         if not failed:
             failed = ["the gas solve of a final pass did not converge"]
-        return (f"not converged when max_passes = {self.case.numerics.max_passes} was reached "
+        return (f"not converged when max_passes = {n.max_passes} was reached "
                 f"({self._judged_at()}): " + "; ".join(failed))
 
     def _judged_at(self) -> str:

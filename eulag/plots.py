@@ -46,6 +46,13 @@ __all__ = ["dataset_problem", "three_panel", "vertical_profiles", "convergence",
 # helpers
 # ---------------------------------------------------------------------------
 
+
+def verdict_label(ds) -> str:
+    """The run's verdict as the convergence figures title it (``eulag.output.is_converged``)."""
+    from eulag.output import is_converged
+
+    return "converged" if is_converged(ds) else "NOT converged"
+
 def _new_figure(width: float, height: float) -> Figure:
     fig = Figure(figsize=(width, height), dpi=110, layout="constrained")
     FigureCanvasAgg(fig)
@@ -360,7 +367,7 @@ def convergence(ds: xr.Dataset, path) -> Path | None:
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
         ax.grid(True, which="both", alpha=0.3)
-    fig.suptitle(f"{_case_name(ds)}: convergence (converged = {ds.attrs.get('converged', '?')})")
+    fig.suptitle(f"{_case_name(ds)}: convergence ({verdict_label(ds)})")
     return _save(fig, path)
 
 
@@ -706,7 +713,7 @@ def two_fluid_convergence(ds: xr.Dataset, path) -> Path | None:
         axes[1].set_ylabel("outer iterations of the station")
     for ax in axes:
         ax.grid(alpha=0.3, which="both")
-    fig.suptitle(f"{_two_fluid_name(ds)}:\nconvergence (converged = {ds.attrs.get('converged', '?')})", fontsize=10)
+    fig.suptitle(f"{_two_fluid_name(ds)}:\nconvergence ({verdict_label(ds)})", fontsize=10)
     return _save(fig, path)
 
 

@@ -400,3 +400,18 @@ def test_a_failing_figure_keeps_the_dataset_and_says_so_even_quietly(tmp_path, c
     assert err.splitlines() == [f"eulag: warning: figures not written (RuntimeError: no canvas at all); the dataset "
                                 f"{tmp_path / 'tf.nc'} is complete"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tf.nc", "tf.toml"]
+
+
+def test_convergence_figure_titles_the_runs_verdict(tmp_path, monkeypatch):
+    """The title states the verdict the dataset stores (the ``converged`` variable), for a
+    converged and an unconverged run."""
+    from matplotlib.figure import Figure
+
+    titles = []
+    real = Figure.suptitle
+    monkeypatch.setattr(Figure, "suptitle", lambda self, t, **kw: (titles.append(t), real(self, t, **kw))[1])
+    ds = particle_dataset()
+    for flag in (1, 0):
+        ds["converged"] = ((), np.int8(flag))
+        plots.convergence(ds, tmp_path / f"c{flag}.png")
+    assert titles[0].endswith("(converged)") and titles[1].endswith("(NOT converged)"), titles
