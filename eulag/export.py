@@ -70,10 +70,19 @@ class ExportError(ValueError):
 def export_path(vts_path: str | os.PathLike) -> Path:
     """The file :func:`export_vts` writes for the target ``vts_path`` (checked: ``.vts`` or ``.vtu``)."""
     path = Path(vts_path)
-    if path.suffix.lower() in (".vts", ".vtu"):
-        return path
-    raise ExportError(f"{path}: unknown suffix {path.suffix or '(none)'!r}; allowed: .vts (VTK structured "
-                      "grid) or .vtu (VTK unstructured grid)")
+    if path.suffix.lower() not in (".vts", ".vtu"):
+        raise ExportError(f"{path}: unknown suffix {path.suffix or '(none)'!r}; allowed: .vts (VTK structured "
+                          "grid) or .vtu (VTK unstructured grid)")
+    if path.is_symlink() or (path.exists() and not path.is_file()):
+        what = "a symbolic link" if path.is_symlink() else "a directory" if path.is_dir() else "not a regular file"
+        raise ExportError(f"{path}: is {what} (the file is written beside it and renamed over it); allowed: "
+                          "a regular file path")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise ExportError(f"{path}: directory {parent} does not exist; allowed: a path in an existing directory")
+    if not os.access(parent, os.W_OK):
+        raise ExportError(f"{path}: directory {parent} is not writable")
+    return path
 
 
 def _vtk_modules():

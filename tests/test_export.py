@@ -124,6 +124,12 @@ def test_target_suffixes(tmp_path):
     with pytest.raises(ExportError, match="no such dataset"):
         export_vts(tmp_path / "absent.nc", tmp_path / "a.vtu")
     assert list(tmp_path.iterdir()) == []
+    # a missing directory or a directory in the target's place: refused before any work
+    with pytest.raises(ExportError, match="directory .*missing does not exist"):
+        export_path(tmp_path / "missing" / "a.vtu")
+    (tmp_path / "d.vtu").mkdir()
+    with pytest.raises(ExportError, match="is a directory"):
+        export_path(tmp_path / "d.vtu")
 
 
 def test_cf_bounds_instead_of_edges(exported, tmp_path):
