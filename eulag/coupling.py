@@ -621,6 +621,7 @@ class CouplingLoop:
 
     def __init__(self, case, *, checkpoint=None, resume=False, parcels=None, progress=None,
                  tracker=None, notify=None):
+        started = time.perf_counter()
         if case.particles is None:
             raise ValueError("CouplingLoop needs a case with [particles]")
         if parcels is not None:
@@ -643,7 +644,9 @@ class CouplingLoop:
         self.drift_told_at = -1  # α level (alpha_changed_at) at which a kept α was reported
         self.two_way = case.physics.coupling != "one-way"
         self.history = _History()
-        self.timings = {"gas_solve": 0.0, "lagrangian": 0.0, "checkpoint": 0.0, "compile": 0.0}
+        # wall-clock seconds per stage; "total" (the run's whole wall time, over every resumed
+        # session) is kept up to date at each checkpoint
+        self.timings = {"gas_solve": 0.0, "lagrangian": 0.0, "checkpoint": 0.0}
         self.pass_index = 0
         self.phase = "early"
         self.final_left = case.numerics.average_passes
@@ -676,6 +679,11 @@ class CouplingLoop:
         self.last_sample = None
         if resume and self.checkpoint is not None and self.checkpoint.exists():
             self._load()
+        self._clock = (started, self.timings.get("total", 0.0))  # this session's start, the time before it
+
+    def elapsed(self) -> float:
+        """The run's wall time so far [s]: the sessions before a resume and this one."""
+        return self._clock[1] + (time.perf_counter() - self._clock[0])
 
     # ------------------------------------------------------------------ gas
     # implicit under-relaxation of (k, eps) and momentum tried in turn when a periodic gas solve
@@ -898,6 +906,7 @@ class CouplingLoop:
                           times={"gas_solve": t_gas, "lagrangian": t_part})
         if self.checkpoint is not None:
             t0 = time.perf_counter()
+            self.timings["total"] = self.elapsed()
             self._save()
             self.timings["checkpoint"] += time.perf_counter() - t0
         if self.progress is not None:
@@ -1259,7 +1268,7 @@ class CouplingLoop:
             i += 1
         self.criteria = [Criterion(**c) for c in meta.get("criteria", [])]
         self.drift_told_at = meta.get("drift_told_at", -1)
-        self.timings.update(meta["timings"])
+        self.timings.update({k: v for k, v in meta["timings"].items() if k != "compile"})  # (never measured)
 
     def _gas_from(self, data, tag):
         kw = {name: data[f"{tag}_{name}"] for name in self._GAS}

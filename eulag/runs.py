@@ -301,7 +301,7 @@ def dataset_state(out: str | Path, case) -> str | None:
     try:
         with xr.open_dataset(out) as ds:
             attrs = dict(ds.attrs)
-            state = stored_state(ds)
+            state = stored_state(ds, case)
     except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
         from eulag.arguments import short_reason
 
@@ -332,9 +332,11 @@ def case_difference(attrs: dict, case) -> str:
         return ""
 
 
-def stored_state(ds) -> str:
+def stored_state(ds, case=None) -> str:
     """The verdict of a finished run's dataset: ``"converged"``; ``"unconverged"`` (it ended
-    unconverged after all its passes or iterations: running it again gives the same); or
+    unconverged after all its passes or iterations: running it again gives the same); ``"budget
+    raised"``, unconverged, but ``case`` (when given) allows more iterations than it had (a
+    two-fluid ``numerics.max_iterations``, which is not part of the case's identity); or
     ``"rejected"``, a slug dataset stored as finished that today's rules reject
     (``eulag.slug.verdict``; written by a code before the rule, e.g. a jammed tube)."""
     from eulag.output import is_converged
@@ -343,6 +345,10 @@ def stored_state(ds) -> str:
         return "converged"
     if ds.attrs.get("model") == "dem-darcy" and ds.attrs.get("converged") == "true":
         return "rejected"
+    if isinstance(case, ModelCase):
+        more = getattr(_model_module(case.model), "budget_raised", None)
+        if more is not None and more(dict(ds.attrs), case.data):
+            return "budget raised"
     return "unconverged"
 
 
@@ -350,7 +356,9 @@ def takes_as_finished(state: str | None) -> bool:
     """Whether an output in ``state`` (:func:`dataset_state`) is taken as this case's finished run
     instead of running it again: the one rule of ``--resume``, the sweep and the studies.  A run
     that converged is, and one that ended unconverged; a ``"rejected"`` slug dataset is run
-    again.  (``eulag run --resume`` continues a checkpoint beside the output instead, which
+    again, and so is an unconverged run whose iteration budget the case has since raised
+    (``"budget raised"``: a two-fluid ``numerics.max_iterations``, which is not part of the
+    case's identity).  (``eulag run --resume`` continues a checkpoint beside the output instead, which
     for a finished coupled run writes the same dataset again.)"""
     return state in ("converged", "unconverged")
 
@@ -522,7 +530,6 @@ def _coupled(case: Case, out: Path | None, *, resume: bool, progress, notify, tr
     from eulag.coupling import CouplingError, CouplingLoop
     from eulag.output import coupled_dataset, write_dataset
 
-    t_start = time.perf_counter()
     ckpt = checkpoint_path(out, case) if out is not None else None
     if ckpt is not None:
         if resume and not ckpt.exists() and finished_output(out, case):
@@ -532,12 +539,11 @@ def _coupled(case: Case, out: Path | None, *, resume: bool, progress, notify, tr
     try:
         loop = CouplingLoop(case, checkpoint=ckpt, resume=resume, progress=progress, tracker=tracker,
                             notify=notify)
-        before = loop.timings.get("total", 0.0)
         loop.run()
     except (CouplingError, rans.SolverDivergence) as exc:
         where = f" (checkpoint of the last complete pass: {ckpt})" if ckpt is not None else ""
         raise RunError(f"{exc}{where}") from None
-    loop.timings["total"] = before + (time.perf_counter() - t_start)
+    loop.timings["total"] = loop.elapsed()
     ds = coupled_dataset(loop)
     if out is not None:
         write_dataset(ds, out)

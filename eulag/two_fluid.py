@@ -448,6 +448,17 @@ def checkpoint_problem(ckpt, case: dict):
     return "checkpoint of a different case" + (f" ({what})" if what else "")
 
 
+def budget_raised(attrs: dict, case: dict) -> bool:
+    """Whether ``case`` allows more outer iterations than the run stored in a dataset's attributes
+    ``attrs`` had (``numerics.max_iterations``, which :func:`dataset_key` leaves out): its
+    unconverged result is then not the final answer of ``case``."""
+    try:
+        stored = int(attrs["numerics.max_iterations"])
+    except (KeyError, TypeError, ValueError):
+        return False
+    return int(resolved_case(case)["numerics"]["max_iterations"]) > stored
+
+
 def compared_cases(attrs: dict, case: dict) -> tuple[dict, dict]:
     """The stored case of a dataset's attributes ``attrs`` (``case_json``) and ``case`` as
     :func:`same_case` compares them (:func:`dataset_key`)."""
@@ -489,23 +500,28 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
     ck = checkpoint_path(out) if out is not None else None
     if c["numerics"]["mode"] == "developing":
         return _run_developing(case, c, pb, key, out, ck, resume, progress)
+    t0 = time.perf_counter()
     solver = _Solver(pb)
     state = None
+    before = 0.0  # wall time of the sessions before a resume [s]
     if resume and ck is not None and ck.is_file():
         d = _read_checkpoint(ck, key)
         if d is not None:
             state = SectionState.from_arrays(d)
+            before = float(d.get("time_total", 0.0))
     if state is None:
         state = solver.initial_state()
 
+    def elapsed():
+        return np.array(before + (time.perf_counter() - t0))
+
     def save(st):
         if ck is not None and st.iteration % 25 == 0:
-            savez_atomic(ck, {"case_json": np.array(key), **st.as_arrays()})
+            savez_atomic(ck, {"case_json": np.array(key), "time_total": elapsed(), **st.as_arrays()})
             if progress:
                 print(f"two-fluid {c.get('name', '')}: iteration {st.iteration}, change {st.history[-1][1]:.2e}, "
                       f"-dp/dx {st.G:.1f} Pa/m", flush=True)
 
-    t0 = time.perf_counter()
     try:
         st, ok, closures = solver.run(state, save)
     except SectionDivergence as exc:
@@ -513,14 +529,14 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
     reason = ("converged" if ok else
               f"not converged: outer change {st.history[-1][1]:.3g} > numerics.tolerance {pb.tolerance:g} "
               f"after {st.iteration} iterations")
-    ds = _dataset(case, solver, st, closures, ok, reason, time.perf_counter() - t0)
+    ds = _dataset(case, solver, st, closures, ok, reason, float(elapsed()))
     ds.attrs["case_json"] = key
     if out is not None:
         write_dataset(ds, out)
         if ok and ck.is_file():
             ck.unlink()
         elif not ok:
-            savez_atomic(ck, {"case_json": np.array(key), **st.as_arrays()})
+            savez_atomic(ck, {"case_json": np.array(key), "time_total": elapsed(), **st.as_arrays()})
     return ds
 
 
@@ -536,11 +552,14 @@ def _run_developing(case, c, pb, key, out, ck, resume, progress):
     from tfm.developing import march_pipe
     from tfm.section import SectionDivergence, SectionState, _Solver
 
+    t0 = time.perf_counter()
     D, n = c["pipe"]["diameter"], c["numerics"]
     rows, fields, start = [], [], None
+    before = 0.0  # wall time of the sessions before a resume [s]
     if resume and ck is not None and ck.is_file():
         d = _read_checkpoint(ck, key)
         if d is not None and "station_x" in d and int(d.get("max_iterations", -1)) == pb.max_iterations:
+            before = float(d.get("time_total", 0.0))
             cols = ("x", "G", "holdup", "ms", "peak", "it", "ok")
             rows = [{k: d[f"station_{k}"][i].item() for k in cols} for i in range(len(d["station_x"]))]
             names = [str(v) for v in d["field_names"]]
@@ -552,6 +571,7 @@ def _run_developing(case, c, pb, key, out, ck, resume, progress):
         names = list(fields[0])
         arrays = {f"field_{nm}": np.stack([f[nm] for f in fields]) for nm in names}
         savez_atomic(ck, {"case_json": np.array(key), "max_iterations": np.array(pb.max_iterations),
+                          "time_total": np.array(before + (time.perf_counter() - t0)),
                           "field_names": np.array(names), **cols, **arrays, **st.as_arrays()})
 
     done = []   # the last completed station's state (for the checkpoint of a failure)
@@ -566,7 +586,6 @@ def _run_developing(case, c, pb, key, out, ck, resume, progress):
             print(f"two-fluid {c.get('name', '')}: station {len(rows)}, x = {x:.3f} m, -dp/dx {st.G:.1f} Pa/m, "
                   f"{row['it']} iterations", flush=True)
 
-    t0 = time.perf_counter()
     solver = _Solver(pb)
     try:
         res = march_pipe(pb, c["pipe"]["length"], first_step=n["first_step_diameters"] * D, growth=n["step_growth"],
@@ -583,7 +602,7 @@ def _run_developing(case, c, pb, key, out, ck, resume, progress):
     reason = ("converged" if ok else f"not converged: {len(bad)} of {len(rows)} stations reached "
               f"numerics.max_iterations = {pb.max_iterations} (first: station {bad[0]}, x = {rows[bad[0] - 1]['x']:.4g} m)")
     res.solver.capped = int(res.closures["ncap"])
-    ds = _dataset(case, res.solver, res.state, res.closures, ok, reason, time.perf_counter() - t0,
+    ds = _dataset(case, res.solver, res.state, res.closures, ok, reason, before + (time.perf_counter() - t0),
                   march=(rows, fields))
     ds.attrs["case_json"] = key
     for k, v in res.inlet.items():

@@ -517,3 +517,26 @@ def test_resume_continues_this_cases_checkpoint_beside_another_runs_output(tmp_p
     from eulag import runs
     with xr.open_dataset(tmp_path / "a.nc") as ds:
         assert runs.same_case(dict(ds.attrs), runs.load_case("b.toml"))
+
+
+def test_an_unconverged_two_fluid_run_is_run_again_when_its_iteration_budget_is_raised(tmp_path, monkeypatch,
+                                                                                      capsys):
+    """numerics.max_iterations is not part of a two-fluid case's identity; an unconverged result
+    with fewer iterations than the case now allows is not its final answer: --resume and the
+    sweep run it again (with the same budget they keep it, as running it again gives the same)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.toml").write_text(_tiny_two_fluid(0.7))
+    assert run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--quiet", "--no-plots")[0] == 1
+    (tmp_path / "a.nc.checkpoint.npz").unlink()
+    status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--resume", "--quiet", "--no-plots")
+    assert status == 1 and "holds this case's finished run" in err, (out, err)  # the same budget: kept
+    (tmp_path / "a.toml").write_text(_tiny_two_fluid(0.7).replace("max_iterations = 60", "max_iterations = 90"))
+    from eulag import runs
+
+    assert runs.dataset_state(tmp_path / "a.nc", runs.load_case("a.toml")) == "budget raised"
+    status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--resume", "--quiet", "--no-plots")
+    assert "finished run" not in err, err
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "a.nc") as ds:
+        assert int(ds.attrs["iterations"]) > 60

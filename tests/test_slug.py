@@ -9,6 +9,7 @@
 - kill after a checkpoint + resume gives the uninterrupted result bit for bit.
 """
 
+import json
 import math
 import tomllib
 from pathlib import Path
@@ -286,11 +287,14 @@ def test_resume_after_kill_is_bit_identical(tmp_path, monkeypatch):
                                                      "rec_section_ok")}
     with open(old_ckpt, "wb") as fh:
         np.savez(fh, **old)
+    with np.load(ckpt) as z:
+        before = json.loads(str(z["scalars"]))["wall_time_s"]  # the killed session's wall time
     resumed = slug.run_slug(case, tmp_path / "b.nc", resume=True, progress=False)
     for name, v in full.data_vars.items():
         if name == "gas_solve_share":  # wall-clock
             continue
         assert np.array_equal(v.values, resumed[name].values, equal_nan=True), name
+    assert resumed.attrs["wall_time_s"] > before > 0  # every session of the run counts
 
     resumed = slug.run_slug(case, tmp_path / "c.nc", resume=True, progress=False)
     flag = resumed.section_recorded.values

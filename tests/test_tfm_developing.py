@@ -151,7 +151,10 @@ def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, monkeypatch):
         run_two_fluid(case, out)
     monkeypatch.setattr(tf, "_station_fields", real)
     assert not out.exists() and tf.checkpoint_path(out).is_file()
+    with np.load(tf.checkpoint_path(out)) as z:
+        before = float(z["time_total"])  # the killed session's wall time
     again = run_two_fluid(case, out, resume=True)
+    assert again.attrs["time_total"] > before > 0
     assert not tf.checkpoint_path(out).exists()
     for v in ("gas_ux", "solids_ux", "solids_fraction", "pressure_gradient", "pressure_drop", "gas_k"):
         np.testing.assert_array_equal(again[v].values, whole[v].values)

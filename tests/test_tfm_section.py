@@ -179,9 +179,13 @@ def test_unconverged_run_leaves_a_checkpoint_and_resume_continues_it(tmp_path):
     assert ds.attrs["converged"] == "false" and "numerics.tolerance" in ds.attrs["stop_reason"]
     ck = out.with_name(out.name + ".checkpoint.npz")
     assert ck.is_file()
+    with np.load(ck) as z:
+        assert float(z["time_total"]) == pytest.approx(ds.attrs["time_total"], rel=0.5)
+        before = float(z["time_total"])
     case["numerics"]["max_iterations"] = 400
     done = run_two_fluid(case, out, resume=True)
     assert done.attrs["converged"] == "true"
+    assert done.attrs["time_total"] > before > 0  # the wall time counts the session before the resume
     assert int(done.iteration[0]) == 1 and done.sizes["iteration"] == done.attrs["iterations"] > 20
     assert not ck.exists()
     fresh = run_two_fluid(case, None)

@@ -271,7 +271,7 @@ def run_case(args, name: str, case: Case | CaseError, outdir: Path, label: str,
                     and _same_case(opened.attrs, case))
         if finished and not report:  # --report tabulates every dataset; a resume keeps what the run
             # layer keeps (runs.takes_as_finished: not a slug dataset that today's rules reject)
-            finished = runs.takes_as_finished(runs.stored_state(opened))
+            finished = runs.takes_as_finished(runs.stored_state(opened, case))
         if finished:
             ds = opened
             reused = True
