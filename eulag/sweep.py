@@ -233,7 +233,9 @@ def run_case(case, output, numba_threads=None):
         text = " ".join(f"{type(exc).__name__}: {exc}".split())
         return summary_row(case.name, None, output, FAILED, time.perf_counter() - t0, error=text,
                            model=getattr(case, "model", "euler-lagrange"))
-    return summary_row(case.name, ds, output, RAN, time.perf_counter() - t0)
+    # the run's own wall time, as its dataset stores it (every session of a resumed run; the same
+    # figure a later sweep reads from the finished output)
+    return summary_row(case.name, ds, output, RAN, None)
 
 
 # ---------------------------------------------------------------------------- the sweep
