@@ -68,10 +68,11 @@ class TubeGrid:
         r = 0.5 * diameter
         self.lx = self.length / nx
         self.lt = diameter / ny
+        k = -(-int(samples) // ny)  # sample points per cell across (at least samples in all)
+        samples = k * ny
         h = diameter / samples
         s = -r + (np.arange(samples) + 0.5) * h
         inside = (s[:, None] ** 2 + s[None, :] ** 2) < r * r
-        k = samples // ny
         self.area = inside.reshape(ny, k, ny, k).sum(axis=(1, 3)) * h * h
         # face between rows b and b+1 at y = −R + (b+1) l_t: length of that line inside the circle per column c
         side = np.zeros((max(ny - 1, 0), ny))

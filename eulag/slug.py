@@ -188,6 +188,12 @@ def _finite(v) -> bool:
         return False
 
 
+#: The node porosity below which the transfer is not a packing of spheres (solids fraction above
+#: 0.8): clipped there for the gas step, counted (``porosity_clipped_cells``), and a run where it
+#: happened is not a valid result (:func:`verdict`).
+PHI_FLOOR = 0.2
+
+
 def _bad(sec, key, val, allowed):
     return ValueError(f"{sec}.{key} = {val!r}: allowed {allowed}")
 
@@ -275,6 +281,17 @@ def validate_slug_case(case: dict) -> dict:
     if t["periodic"] and t["length_m"] < shortest:
         raise _bad("tube", "length_m", t["length_m"], f">= {shortest:.4g} m for a periodic tube (3 (1 + {SKIN}) "
                    f"grain diameters)")
+    across = t["diameter_m"] / (2.0 * gr["diameter_m"])
+    if n["cells_across"] > max(1.0, across):
+        raise _bad("numerics", "cells_across", n["cells_across"],
+                   f"<= tube.diameter_m / (2 grains.diameter_m) = {across:.3g} (gas cells at least two grains wide, "
+                   f"as the paper's 3.5 mm cells for 1.4 mm grains: narrower cells leave the partial cells at the "
+                   f"wall smaller than a grain, whose porosity the tent transfer does not resolve)")
+    for key in ("plug_length_m", "plug_start_m"):
+        given = (case.get("initial") or {}).get(key, DEFAULTS["initial"][key])
+        if not t["periodic"] and given != DEFAULTS["initial"][key]:
+            raise _bad("initial", key, given, f"{DEFAULTS['initial'][key]} (not set) for a tube that is not periodic "
+                       "(it fills from the feed; a filled state is initial.state)")
     if out["initial"]["state"] and t["periodic"]:
         raise _bad("initial", "state", out["initial"]["state"], "\"\" for a periodic tube (its initial plug is "
                    "initial.plug_length_m)")
@@ -461,9 +478,9 @@ class _Simulation:
         t1 = time.perf_counter()
         n = g.n
         phi, u = self.transfer.porosity_velocity(g.pos[:n], g.vel[:n], g.status[:n])
-        low = phi < 0.2
+        low = phi < PHI_FLOOR
         self.phi_clipped += int(low.sum())
-        phi = np.clip(phi, 0.2, 1.0)
+        phi = np.clip(phi, PHI_FLOOR, 1.0)
         self.phi, self.u = phi, u
         self.darcy.step(phi, u, self.gas_dt, self.v_s)
         self.gas_force[:n] = gas_force_on_grains(self.transfer, g.pos[:n], g.status[:n], self.darcy.gradient(), phi,
@@ -930,14 +947,19 @@ def overlap_limit(stored_case: dict) -> float:
 
 
 def verdict(ds) -> tuple[bool, str]:
-    """(converged, stop_reason) of a finished slug dataset by today's rules: no grain lost, and the
-    largest overlap within the case's ``numerics.overlap_limit`` (:func:`problem_overlap`)."""
+    """(converged, stop_reason) of a finished slug dataset by today's rules: no grain lost, the
+    largest overlap within the case's ``numerics.overlap_limit`` (:func:`problem_overlap`), and
+    no porosity clipped at :data:`PHI_FLOOR`."""
     limit = overlap_limit(json.loads(ds.attrs["case"]))
     lost = int(np.asarray(ds["grains_lost"].values)) if "grains_lost" in ds else int(ds.attrs.get("grains_lost", 0))
     problems = [f"{lost} grains lost"] if lost else []
     overlap = problem_overlap(ds, limit)
     if overlap:
         problems.append(overlap)
+    clipped = int(ds.attrs.get("porosity_clipped_cells", 0))
+    if clipped:
+        problems.append(f"the node porosity fell below {PHI_FLOOR} (denser than any packing of spheres) in {clipped} "
+                        "node-steps and was clipped there: the tent transfer does not resolve the grid's cells")
     return (not problems), ("finished, but " + "; ".join(problems) if problems else "finished")
 
 

@@ -141,10 +141,14 @@ def test_packaged_cases_validate(name):
     ("numerics", "cross_section_pixels", 21, "numerics.cross_section_pixels = 21: allowed an integer from 2 to 20"),
     ("numerics", "cross_section_pixels", 1, "numerics.cross_section_pixels = 1: allowed an integer from 2 to 20"),
     ("numerics", "cross_section_at", 0.0, "numerics.cross_section_at = 0.0: allowed 0.003333 <= value <= 0.9967"),
+    # with 3 gas cells across the 7 mm tube the porosity fell below 0.2 and Delta p halved; 4: clipped throughout
+    ("numerics", "cells_across", 3, "numerics.cells_across = 3: allowed <= tube.diameter_m / (2 grains.diameter_m) = 2.5"),
+    ("initial", "plug_length_m", 0.05, "initial.plug_length_m = 0.05: allowed 0.0 (not set) for a tube that is not "
+     "periodic"),
 ])
 def test_validation_one_line_errors(section, key, value, msg):
     case = _case("strauss_horizontal")
-    case[section][key] = value
+    case.setdefault(section, {})[key] = value
     with pytest.raises(ValueError) as err:
         slug.validate_slug_case(case)
     assert str(err.value).startswith(msg) and "\n" not in str(err.value)
@@ -492,3 +496,13 @@ def test_gas_force_sums_to_minus_grad_p_times_volume():
     total = f.sum(axis=0)
     assert total[0] == pytest.approx(2000.0 * math.pi * RT**2 * length, rel=0.01)
     assert abs(total[1]) < 1e-12 and abs(total[2]) < 1e-12
+
+
+def test_a_grid_whose_porosity_was_clipped_is_not_a_valid_result(tmp_path):
+    """The node porosity is clipped at PHI_FLOOR (denser than any packing of spheres) only when the
+    tent transfer does not resolve the grid: such a run ends unconverged, saying why."""
+    ds = slug.run_slug(_short_periodic(end=0.01), None, progress=False)
+    assert slug.verdict(ds) == (True, "finished")
+    ds.attrs["porosity_clipped_cells"] = 12
+    ok, why = slug.verdict(ds)
+    assert not ok and "fell below 0.2" in why and "12 node-steps" in why
