@@ -104,6 +104,12 @@ SCHEMA = {
 }
 _TOP = ("name", "description", "model")
 
+#: [experiment]: the measurements beside a case (Table 1 of Ding et al.; not used by the solver),
+#: key -> (check, allowed)
+EXPERIMENT = {"supplementary_gas": _num(0, 1e6), "inlet_alpha_s": _num(0, 1),
+              "inlet_solids_velocity": _num(0, 200), "outlet_pressure": _num(0, 1e9),
+              "pressure_drop": _num(0, 1e9)}
+
 
 def _fmt(v):
     text = json.dumps(v) if isinstance(v, str) else repr(v)
@@ -157,6 +163,12 @@ def validate_two_fluid_case(case: dict) -> None:
                          f"numerics.first_step_diameters ({first!r})")
     if "experiment" in case and not isinstance(case["experiment"], dict):
         raise ValueError(f"experiment = {_fmt(case['experiment'])}: allowed a table")
+    for k, v in case.get("experiment", {}).items():
+        if k not in EXPERIMENT:
+            raise ValueError(f"experiment.{k} = {_fmt(v)}: allowed keys of [experiment]: {', '.join(EXPERIMENT)}")
+        check, allowed = EXPERIMENT[k]
+        if not check(v):
+            raise ValueError(f"experiment.{k} = {_fmt(v)}: allowed {allowed}")
     # values each within their own range that clash (as the Euler-Lagrange cases check them)
     gas, solids, pipe = case["gas"], case["solids"], case["pipe"]
     if not solids["density"] > gas["density"]:
@@ -170,6 +182,16 @@ def validate_two_fluid_case(case: dict) -> None:
     if not solids["diameter"] < 0.2 * pipe["diameter"]:
         raise ValueError(f"solids.diameter = {_fmt(solids['diameter'])}: allowed a number < pipe.diameter / 5 "
                          f"({0.2 * pipe['diameter']:g}): a continuum of particles much smaller than the pipe")
+    from tfm.inlet import hinkle_1953_solids_velocity, inlet_solids_fraction
+
+    u_in = float(hinkle_1953_solids_velocity(gas["superficial_velocity"], solids["diameter"], solids["density"],
+                                             gas["density"], pipe["diameter"]))
+    a_in = float(inlet_solids_fraction(solids["mass_flow"], solids["density"], u_in, pipe["diameter"]))
+    if not a_in < amax:
+        most = solids["mass_flow"] * amax / a_in
+        raise ValueError(f"solids.mass_flow = {_fmt(solids['mass_flow'])}: allowed a mass flow [kg s-1] below "
+                         f"{most:.3g}, whose inlet solids fraction (Hinkle's velocity {u_in:.3g} m/s, eqs. 22-23) "
+                         f"stays below friction.alpha_max = {amax:g} (here {a_in:.3g})")
 
 
 _CHECK_UNITS = {("pipe", "diameter"): "m", ("pipe", "length"): "m", ("gas", "density"): "kg m-3",

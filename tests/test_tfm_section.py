@@ -35,10 +35,16 @@ def test_packaged_cases_validate(qs):
     ("numerics", "azimuthal_cells", 15, r"^numerics.azimuthal_cells = 15: allowed an even integer"),
     ("friction", "internal_friction_angle", 32.0, r"^friction.internal_friction_angle = 32.0: allowed keys of \[friction\]"),
     ("walls", "law", "johnson-jackson", r'^walls.law = "johnson-jackson": allowed one of ding, schneiderbauer'),
+    ("experiment", "pressure_drop", "x", r'^experiment.pressure_drop = "x": allowed a number > 0'),
+    ("experiment", "pressure_drop", -5.0, r"^experiment.pressure_drop = -5.0: allowed a number > 0"),
+    ("experiment", "supplementary_gs", 0.8, r"^experiment.supplementary_gs = 0.8: allowed keys of \[experiment\]"),
+    # kg/h typed where kg/s is meant: the inlet solids fraction would exceed the packing
+    ("solids", "mass_flow", 5.0, r"^solids.mass_flow = 5.0: allowed a mass flow \[kg s-1\] below 0\.[0-9]+, whose "
+     r"inlet solids fraction .* stays below friction.alpha_max = 0.63 \(here [0-9.]+\)"),
 ])
 def test_validation_errors_are_one_line(section, key, value, message):
     case = small_case()
-    case[section][key] = value
+    case.setdefault(section, {})[key] = value
     with pytest.raises(ValueError, match=message) as err:
         validate_two_fluid_case(case)
     assert "\n" not in str(err.value)
