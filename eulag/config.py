@@ -281,6 +281,12 @@ class _Section:
                 for f in _public_fields(self) if getattr(self, f.name) is not None}
 
 
+#: Tables of the dense-phase models' cases, for the message when a case leaves out its model key.
+_OTHER_MODEL_TABLES = {"tube": "dem-darcy", "grains": "dem-darcy", "feed": "dem-darcy", "initial": "dem-darcy",
+                       "solids": "two-fluid", "friction": "two-fluid", "kinetic": "two-fluid", "drag": "two-fluid",
+                       "experiment": "two-fluid"}
+
+
 def _unknown(key: str, value: Any, names: list[str], where: str) -> CaseError:
     leaf = key.rsplit(".", 1)[-1]
     close = difflib.get_close_matches(leaf, names, n=1)
@@ -919,6 +925,11 @@ class Case:
                             "here: euler-lagrange (eulag.runs.load_case reads the other models' cases)")
         for key, value in d.items():
             if key not in _TOP_KEYS:
+                other = _OTHER_MODEL_TABLES.get(key)
+                if other is not None and isinstance(value, dict):
+                    raise CaseError(f'[{key}]: a table of the {other} model, in a case without model = "{other}" '
+                                    f'(read as an Euler-Lagrange case); allowed: model = "{other}" at the top '
+                                    f"of the file, or the Euler-Lagrange tables {', '.join(_SECTIONS)}")
                 raise _unknown(key, value, _TOP_KEYS, "the top level")
         kwargs: dict[str, Any] = {}
         if "name" in d:

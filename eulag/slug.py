@@ -104,6 +104,7 @@ END_TIME_MAX_S = 1e5
 #: Largest values of the integers (numerics.seed: any int64 >= 0; the others at most 10⁷): the gas
 #: grid of the paper has 150 x 2 x 2 nodes.
 _INT_MAX = {"cells_x": 100_000, "cells_across": 64}
+_INT_MIN = {"cells_x": 3}
 _BOOLS = {("tube", "periodic"), ("numerics", "parallel")}
 _STRINGS = {("initial", "state")}
 # (low, high, low inclusive?) for the numbers
@@ -230,7 +231,7 @@ def validate_slug_case(case: dict) -> dict:
                 if v not in _CHOICES[sec, k]:
                     raise _bad(sec, k, v, " | ".join(repr(c) for c in _CHOICES[sec, k]))
             elif (sec, k) in _INTS:
-                lo, hi = (0, 2 ** 63 - 1) if k == "seed" else (1, _INT_MAX.get(k, 10 ** 7))
+                lo, hi = (0, 2 ** 63 - 1) if k == "seed" else (_INT_MIN.get(k, 1), _INT_MAX.get(k, 10 ** 7))
                 if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
                     raise _bad(sec, k, v, f"an integer >= {lo} and <= {hi}")
             else:
@@ -266,6 +267,11 @@ def validate_slug_case(case: dict) -> dict:
     if n["output_interval_s"] > n["end_time_s"]:
         raise _bad("numerics", "output_interval_s", n["output_interval_s"], "<= numerics.end_time_s")
     limit = tangential_damping_limit(gr["restitution"], n["steps_per_contact"])
+    if gr["tangential_damping_ratio"] >= limit and "tangential_damping_ratio" not in (case.get("grains") or {}):
+        raise _bad("numerics", "steps_per_contact", n["steps_per_contact"],
+                   f"a number of DEM steps per contact at which the default grains.tangential_damping_ratio "
+                   f"({gr['tangential_damping_ratio']}) stays below the stability limit of the viscous tangential "
+                   f"force (here {limit:.3g}; the limit grows with numerics.steps_per_contact)")
     if gr["tangential_damping_ratio"] >= limit:
         raise _bad("grains", "tangential_damping_ratio", gr["tangential_damping_ratio"],
                    f"< {limit:.3g} at grains.restitution = {gr['restitution']} and numerics.steps_per_contact = "

@@ -261,3 +261,12 @@ def test_a_dataset_from_before_a_later_key_is_the_case_with_its_earlier_value():
                             numerics={"mirror_symmetry": False})
     assert same_case(old, earlier)
     assert same_case(today.to_attrs(), today)  # a dataset of today keeps every key
+
+
+def test_a_dense_phase_case_without_its_model_key_says_so():
+    """A slug or two-fluid case file that leaves out ``model`` is read as an Euler-Lagrange case; its
+    first table says which model it belongs to instead of "unknown key"."""
+    for table, model in (("tube", "dem-darcy"), ("solids", "two-fluid")):
+        with pytest.raises(CaseError, match=rf'^\[{table}\]: a table of the {model} model, in a case without '
+                                            rf'model = "{model}"'):
+            Case.from_dict({"name": "x", table: {"a": 1}})

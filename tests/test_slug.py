@@ -143,6 +143,9 @@ def test_packaged_cases_validate(name):
     ("numerics", "cross_section_at", 0.0, "numerics.cross_section_at = 0.0: allowed 0.003333 <= value <= 0.9967"),
     # with 3 gas cells across the 7 mm tube the porosity fell below 0.2 and Delta p halved; 4: clipped throughout
     ("numerics", "cells_across", 3, "numerics.cells_across = 3: allowed <= tube.diameter_m / (2 grains.diameter_m) = 2.5"),
+    ("numerics", "cells_x", 2, "numerics.cells_x = 2: allowed an integer >= 3"),
+    ("numerics", "steps_per_contact", 2, "numerics.steps_per_contact = 2: allowed a number of DEM steps per contact at "
+     "which the default grains.tangential_damping_ratio"),
     ("initial", "plug_length_m", 0.05, "initial.plug_length_m = 0.05: allowed 0.0 (not set) for a tube that is not "
      "periodic"),
 ])
