@@ -186,6 +186,11 @@ def cmd_run(args) -> int:
         raise _Fail(str(exc), exc.status) from None
     _check_dask(args)
     coupled = isinstance(case, Case) and case.particles is not None
+    if not coupled and (getattr(args, "dask_local", None) is not None or getattr(args, "scheduler", None) is not None):
+        what = "a single-phase case" if isinstance(case, Case) else f"a model = \"{case.model}\" case"
+        raise _Fail(f"--dask-local/--scheduler: {what} runs in this process (Dask spreads the particle passes "
+                    "of a coupled Euler-Lagrange run); allowed: leave them out, or `eulag sweep` to spread "
+                    "several cases", EXIT_BAD_INPUT)
     client, tracker = _dask_tracker(args) if coupled else (None, None)
     bar = None if args.quiet or not coupled else _progress_bar(case, case.numerics.max_passes)
 
@@ -216,7 +221,7 @@ def cmd_run(args) -> int:
     try:
         result = runs.execute(case, out, resume=args.resume, progress=None if args.quiet else progress,
                               notify=notify, tracker=tracker,
-                              plots=(coupled or not isinstance(case, Case)) and not args.no_plots,
+                              plots=not args.no_plots,
                               gas_progress=not args.quiet and sys.stderr.isatty())
     except runs.RunError as exc:
         raise _Fail(str(exc), exc.status) from None
@@ -578,6 +583,9 @@ def cmd_plot(args) -> int:
     if model == "dem-darcy" and args.x is not None:
         raise _Fail(f"--x {args.x:g}: a dem-darcy (slug) dataset has no cross-section station (its figures "
                     "span the tube and the run's time); allowed: no --x", EXIT_BAD_INPUT)
+    if model == "two-fluid" and args.x is not None and ds.sizes.get("x", 0) <= 1:
+        raise _Fail(f"--x {args.x:g}: a fully developed two-fluid section has no axial position (the same at "
+                    "every x); allowed: no --x", EXIT_BAD_INPUT)
     try:
         analysis.check_station(ds, args.x)
     except ValueError as exc:
@@ -604,7 +612,9 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # the reader of stdout went away (e.g. `eulag study --help | head`)
         return EXIT_OK
     except KeyboardInterrupt:
-        print("eulag: error: interrupted; no output written", file=sys.stderr)
+        print("eulag: error: interrupted; no dataset written (a coupled, slug or two-fluid run keeps the "
+              "checkpoint of its last complete pass or interval beside the output: run it again with --resume "
+              "to continue)", file=sys.stderr)
         return 130
     except Exception as exc:  # one line, never a half-written file (writes are atomic)
         if os.environ.get("EULAG_DEBUG"):

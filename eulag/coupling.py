@@ -1269,6 +1269,7 @@ class CouplingLoop:
         self.criteria = [Criterion(**c) for c in meta.get("criteria", [])]
         self.drift_told_at = meta.get("drift_told_at", -1)
         self.timings.update({k: v for k, v in meta["timings"].items() if k != "compile"})  # (never measured)
+        self._tell(f"resuming from {self.checkpoint} after pass {self.pass_index} ({self.phase} passes)")
 
     def _gas_from(self, data, tag):
         kw = {name: data[f"{tag}_{name}"] for name in self._GAS}

@@ -36,7 +36,7 @@ from eulag.config import Case, CaseError, check_name_and_description, name_from_
 
 __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
            "output_path", "dataset_state", "stored_state", "takes_as_finished", "finished_output", "same_case",
-           "case_key", "checkpoint_path", "checkpoint_state", "execute", "run", "with_parcels"]
+           "case_key", "checkpoint_path", "checkpoint_state", "execute", "run", "with_parcels", "UnconvergedRunWarning", "case_difference"]
 
 #: The models a case can name with its top-level ``model`` key, and the module that runs each.
 MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
@@ -482,12 +482,24 @@ def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
                 pass
 
 
+class UnconvergedRunWarning(UserWarning):
+    """:func:`run` returned the dataset of a run that did not converge (its ``converged`` is false;
+    the message is the run's verdict)."""
+
+
 def run(case, out: str | Path | None = None, **kwargs):
     """Run ``case`` (a :class:`eulag.config.Case`, a case file or a packaged case's name) and
-    return its dataset (``xarray.Dataset``); keyword arguments as :func:`execute`."""
+    return its dataset (``xarray.Dataset``); keyword arguments as :func:`execute`.  A run that
+    did not converge warns (:class:`UnconvergedRunWarning`, with the verdict)."""
+    import warnings
+
     if isinstance(case, (str, Path)):
         case = load_case(case)
-    return execute(case, out, **kwargs).dataset
+    result = execute(case, out, **kwargs)
+    if not result.converged:
+        warnings.warn(f"case {result.case.name}: {result.stop_reason} (the dataset says converged = false)",
+                      UnconvergedRunWarning, stacklevel=2)
+    return result.dataset
 
 
 def _single_phase(case: Case, out: Path | None, *, resume: bool, gas_progress: bool) -> RunResult:

@@ -913,6 +913,8 @@ def run_slug(case: dict, out, resume=False, progress=True):
             raise ValueError(f"--resume: {ckpt}: {problem}; remove it or run without --resume")
         with np.load(ckpt, allow_pickle=False) as z:
             sim.load({k: z[k] for k in z.files if k != "case_json"})
+        if progress:
+            print(f"slug: resuming from {ckpt} at t = {sim.gas_step * sim.gas_dt:.4g} s", flush=True)
     elif ckpt.exists():
         ckpt.unlink()
     if c["initial"]["state"] and not (resume and ckpt is not None and ckpt.exists()):

@@ -106,7 +106,8 @@ def plan_sweep(paths, output_dir=".", parcels=None):
         try:
             case = load_case(p, parcels=parcels)
         except RunError as exc:
-            raise SweepInputError(str(exc)) from None
+            text = str(exc)
+            raise SweepInputError(text if str(p) in text else f"{p}: {text}") from None
         if case.name in by_name:
             raise SweepInputError(f"{p}: case name {case.name!r} is also the name of {by_name[case.name]}; "
                                   "every case of a sweep needs its own name (its output is <name>.nc)")

@@ -531,6 +531,8 @@ def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: 
         if d is not None:
             state = SectionState.from_arrays(d)
             before = float(d.get("time_total", 0.0))
+            if progress:
+                print(f"two-fluid {c.get('name', '')}: resuming from {ck} after iteration {state.iteration}", flush=True)
     if state is None:
         state = solver.initial_state()
 
@@ -587,6 +589,8 @@ def _run_developing(case, c, pb, key, out, ck, resume, progress):
             names = [str(v) for v in d["field_names"]]
             fields = [{nm: d[f"field_{nm}"][i] for nm in names} for i in range(len(rows))]
             start = (list(rows), SectionState.from_arrays(d))
+            if progress:
+                print(f"two-fluid {c.get('name', '')}: resuming from {ck} after station {len(rows)}", flush=True)
 
     def save(st):
         cols = {f"station_{k}": np.array([r[k] for r in rows]) for k in rows[0]}

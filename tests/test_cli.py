@@ -99,7 +99,8 @@ def test_single_phase_run_end_to_end(tmp_path, monkeypatch, capsys):
     assert status == 0, err
     assert "friction f_D" in out and "Colebrook" in out and "wall y+" in out
     result = tmp_path / "tiny.nc"  # default: <case name>.nc in the current directory
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.nc", "tiny.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.nc", "tiny.toml", "tiny_figures"]
+    assert len(list((tmp_path / "tiny_figures").glob("*.png"))) == 3 and "figures" in out  # as every run draws
 
     if not CHECK_DATASET.exists():
         pytest.skip(f"schema checker {CHECK_DATASET} not available")
@@ -540,3 +541,33 @@ def test_an_unconverged_two_fluid_run_is_run_again_when_its_iteration_budget_is_
 
     with xr.open_dataset(tmp_path / "a.nc") as ds:
         assert int(ds.attrs["iterations"]) > 60
+
+
+def test_dask_options_on_a_case_that_runs_in_one_process_are_bad_input(tmp_path, capsys):
+    (tmp_path / "tf.toml").write_text(_tiny_two_fluid())
+    status, out, err = run_cli(capsys, "run", tmp_path / "tf.toml", "-o", tmp_path / "tf.nc", "--dask-local", "2")
+    assert status == 2 and len(err.splitlines()) == 1 and "runs in this process" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tf.toml"]
+
+
+def test_plot_x_of_a_fully_developed_two_fluid_section_is_bad_input(tmp_path, capsys):
+    (tmp_path / "tf.toml").write_text(_tiny_two_fluid(0.8))
+    assert run_cli(capsys, "run", tmp_path / "tf.toml", "-o", tmp_path / "tf.nc", "--quiet", "--no-plots")[0] == 0
+    status, out, err = run_cli(capsys, "plot", tmp_path / "tf.nc", "--x", "1.0", "-o", tmp_path / "figs")
+    assert status == 2 and "has no axial position" in err and not (tmp_path / "figs").exists(), err
+
+
+def test_an_interrupted_run_points_to_its_checkpoint(capsys, monkeypatch):
+    from eulag import cli
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(cli, "cmd_check", interrupted)
+    status, out, err = run_cli(capsys, "check", "single_phase_pipe")
+    assert status == 130 and "--resume" in err and "checkpoint" in err, err
+
+
+def test_a_sweep_names_the_case_file_of_bad_input(tmp_path, capsys):
+    (tmp_path / "bad.toml").write_text("[pipe]\ndiameter = 0.03\n")
+    status, out, err = run_cli(capsys, "sweep", tmp_path / "bad.toml", "-o", tmp_path / "sw")
+    assert status == 2 and f"{tmp_path / 'bad.toml'}: " in err, err

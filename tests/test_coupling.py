@@ -69,7 +69,9 @@ def test_resume_from_checkpoint_gives_the_same_dataset(tmp_path, uninterrupted):
     loop.step()
     loop.step()
     del loop  # "killed" after the second pass
-    resumed = run(case, tmp_path / "out.nc", resume=True)
+    told = []
+    resumed = run(case, tmp_path / "out.nc", resume=True, notify=told.append)
+    assert told[0] == f"resuming from {ckpt} after pass 2 (early passes)", told
     data_vars_equal(uninterrupted, resumed)
     # the wall time counts every session: the resumed run's total holds the passes before it
     t = resumed.attrs
@@ -1043,7 +1045,10 @@ def test_resume_takes_a_finished_unconverged_run_whose_checkpoint_is_gone_as_fin
 def test_parcels_stopped_by_the_residence_cap_keep_the_run_unconverged():
     """A residence-time cap shorter than the transit stops every parcel: the particle mass never
     reaches the outlet, and the mass-balance criterion (|in - out| / in) says so."""
-    ds = run(small_case(**{"numerics.residence_cap": 0.01, "numerics.max_passes": 5}))
+    from eulag.runs import UnconvergedRunWarning
+
+    with pytest.warns(UnconvergedRunWarning, match="mass_balance 1 >= 0.01"):
+        ds = run(small_case(**{"numerics.residence_cap": 0.01, "numerics.max_passes": 5}))
     assert ds.attrs["parcels_exited_final"] == 0 and ds.attrs["parcels_stuck_final"] > 0
     assert not bool(ds.converged)
     assert "mass_balance 1 >= 0.01" in ds.attrs["stop_reason"], ds.attrs["stop_reason"]
