@@ -36,7 +36,8 @@ from eulag.config import Case, CaseError, check_name_and_description, name_from_
 
 __all__ = ["RunError", "BadInput", "RunResult", "ModelCase", "MODELS", "packaged_cases", "case_path", "load_case",
            "output_path", "dataset_state", "stored_state", "takes_as_finished", "finished_output", "same_case",
-           "case_key", "checkpoint_path", "checkpoint_state", "execute", "run", "with_parcels", "UnconvergedRunWarning", "case_difference"]
+           "case_key", "checkpoint_path", "checkpoint_state", "resumable_checkpoint", "execute", "run", "with_parcels",
+           "UnconvergedRunWarning", "case_difference"]
 
 #: The models a case can name with its top-level ``model`` key, and the module that runs each.
 MODELS = {"euler-lagrange": "eulag.coupling", "dem-darcy": "eulag.slug", "two-fluid": "eulag.two_fluid"}
@@ -301,13 +302,14 @@ def dataset_state(out: str | Path, case) -> str | None:
     try:
         with xr.open_dataset(out) as ds:
             attrs = dict(ds.attrs)
-            state = stored_state(ds, case)
+            same = same_case(attrs, case)  # first: another case's dataset is not judged by this one's rules
+            state = stored_state(ds, case) if same else None
     except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
         from eulag.arguments import short_reason
 
         raise BadInput(f"--resume: {out} exists but cannot be read as a dataset ({short_reason(exc)}); allowed: "
                        "this case's output, or a path that does not exist yet") from None
-    if not same_case(attrs, case):
+    if not same:
         what = case_difference(attrs, case)
         raise BadInput(f"--resume: {out} holds a different case{f' ({what})' if what else ''}; allowed: the output "
                        "of this case, or run without --resume to overwrite")
@@ -367,6 +369,16 @@ def finished_output(out: str | Path, case) -> bool:
     """Whether ``out`` holds a finished run of ``case`` that a resume keeps
     (:func:`takes_as_finished`; :class:`BadInput` as :func:`dataset_state`)."""
     return takes_as_finished(dataset_state(out, case))
+
+
+def resumable_checkpoint(out: str | Path, case) -> bool:
+    """Whether a checkpoint of ``case`` that it can continue lies beside the output ``out``
+    (:func:`checkpoint_state`); a resume continues it whatever ``out`` holds (a run of this case
+    was started there and its dataset replaces the file when it ends)."""
+    if isinstance(case, Case) and case.particles is None:
+        return False  # a single-phase run keeps no checkpoint
+    state = checkpoint_state(checkpoint_path(out, case), case)
+    return state is not None and state[2] is None
 
 
 def _reused(case, out: Path) -> RunResult:
@@ -452,14 +464,14 @@ def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
     ckpt = None if single_phase else checkpoint_path(out, case)
     if resume:
         state = checkpoint_state(ckpt, case) if ckpt is not None else None
-        if state is None or state[2] is not None:
+        if not resumable_checkpoint(out, case):
             dataset_state(out, case)  # raises for another case's output or an unreadable one
         elif out.is_file() and notify is not None:  # a checkpoint of this case continues, whatever is at out
             try:
                 dataset_state(out, case)
             except BadInput:
-                notify(f"{out}: holds another run's dataset; the checkpoint beside it is this case's and "
-                       "continues (the dataset is replaced when the run ends)")
+                notify(f"{out}: does not hold this case's dataset; the checkpoint beside it is this case's and "
+                       "continues (the file is replaced when the run ends)")
         if state is not None and state[2] is not None:
             problem = state[2].removeprefix(f"{ckpt}: ")
             raise BadInput(f"--resume: {ckpt}: {problem}; allowed: a checkpoint of this case (remove it, "

@@ -189,6 +189,11 @@ def _finite(v) -> bool:
         return False
 
 
+#: The narrowest gas cell across the tube, in grain diameters (the paper's 3.5 mm for 1.4 mm grains):
+#: with cells of 2 grains (4 or 5 across 11-14 mm tubes) or 1.7 (3 across the paper's 7 mm tube) the
+#: wall's partial cells clip the node porosity; with 2.5 (4 across 14 mm) they did not.
+CELL_GRAINS = 2.5
+
 #: The node porosity below which the transfer is not a packing of spheres (solids fraction above
 #: 0.8): clipped there for the gas step, counted (``porosity_clipped_cells``), and a run where it
 #: happened is not a valid result (:func:`verdict`).
@@ -287,12 +292,12 @@ def validate_slug_case(case: dict) -> dict:
     if t["periodic"] and t["length_m"] < shortest:
         raise _bad("tube", "length_m", t["length_m"], f">= {shortest:.4g} m for a periodic tube (3 (1 + {SKIN}) "
                    f"grain diameters)")
-    across = t["diameter_m"] / (2.0 * gr["diameter_m"])
+    across = t["diameter_m"] / (CELL_GRAINS * gr["diameter_m"])
     if n["cells_across"] > max(1.0, across):
         raise _bad("numerics", "cells_across", n["cells_across"],
-                   f"<= tube.diameter_m / (2 grains.diameter_m) = {across:.3g} (gas cells at least two grains wide, "
-                   f"as the paper's 3.5 mm cells for 1.4 mm grains: narrower cells leave the partial cells at the "
-                   f"wall smaller than a grain, whose porosity the tent transfer does not resolve)")
+                   f"<= tube.diameter_m / ({CELL_GRAINS} grains.diameter_m) = {across:.3g} (gas cells at least "
+                   f"{CELL_GRAINS} grains wide, the paper's 3.5 mm cells for 1.4 mm grains: narrower cells leave the "
+                   f"partial cells at the wall too small for the tent transfer, whose porosity it then clips)")
     for key in ("plug_length_m", "plug_start_m"):
         given = (case.get("initial") or {}).get(key, DEFAULTS["initial"][key])
         if not t["periodic"] and given != DEFAULTS["initial"][key]:
@@ -950,8 +955,13 @@ def run_slug(case: dict, out, resume=False, progress=True):
 
 
 def overlap_limit(stored_case: dict) -> float:
-    """``numerics.overlap_limit`` of a stored slug case (a dataset's or a run record's)."""
-    return validate_slug_case(_comparable_stored(stored_case))["numerics"]["overlap_limit"]
+    """``numerics.overlap_limit`` of a stored slug case (a dataset's or a run record's; its
+    default when the case has none), read without validating the case: a stored case is judged
+    by today's verdict, not refused by rules that came after it."""
+    value = ((stored_case or {}).get("numerics") or {}).get("overlap_limit")
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 < value <= 1.0:
+        return DEFAULTS["numerics"]["overlap_limit"]
+    return float(value)
 
 
 def verdict(ds) -> tuple[bool, str]:
@@ -971,14 +981,18 @@ def verdict(ds) -> tuple[bool, str]:
     return (not problems), ("finished, but " + "; ".join(problems) if problems else "finished")
 
 
-def record_verdict(stored_case: dict, grains_lost, max_overlap) -> tuple[bool, str]:
-    """:func:`verdict` from what a study's run record keeps of the run (the grains lost and the
-    largest overlap / d) instead of its dataset."""
+def record_verdict(stored_case: dict, grains_lost, max_overlap, clipped=None) -> tuple[bool, str]:
+    """:func:`verdict` from what a study's run record keeps of the run (the grains lost, the
+    largest overlap / d and the clipped node-steps) instead of its dataset.  Records written
+    before the clipped count was kept (``clipped`` None) are not judged on it: they ran on the
+    paper's two cells across, where the transfer does not clip."""
     limit = overlap_limit(stored_case)
     problems = [f"{int(grains_lost)} grains lost"] if grains_lost else []
     if max_overlap is not None and math.isfinite(float(max_overlap)) and float(max_overlap) > limit:
         problems.append(f"the largest grain overlap reached {100 * float(max_overlap):.3g} % of d "
                         f"(numerics.overlap_limit {100 * limit:g} %)")
+    if clipped:
+        problems.append(f"the node porosity fell below {PHI_FLOOR} in {int(clipped)} node-steps and was clipped there")
     return (not problems), ("finished, but " + "; ".join(problems) if problems else "finished")
 
 

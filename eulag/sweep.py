@@ -91,7 +91,7 @@ def plan_sweep(paths, output_dir=".", parcels=None):
     """
     import os
 
-    from eulag.runs import RunError, checkpoint_path, finished_output, load_case
+    from eulag.runs import RunError, checkpoint_path, finished_output, load_case, resumable_checkpoint
 
     if isinstance(paths, (str, os.PathLike)):  # one case file, not its characters
         paths = [paths]
@@ -119,6 +119,8 @@ def plan_sweep(paths, output_dir=".", parcels=None):
         try:
             e.finished = finished_output(e.output, e.case)
         except RunError as exc:
+            if resumable_checkpoint(e.output, e.case):  # continued whatever the output holds (as run --resume)
+                continue
             msg = (str(exc).replace("--resume: ", "")
                    .replace("or run without --resume to overwrite", "or move it away or write the sweep elsewhere (-o)")
                    .replace("or a path that does not exist yet", "or move it away or write the sweep elsewhere (-o)"))

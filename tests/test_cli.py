@@ -571,3 +571,22 @@ def test_a_sweep_names_the_case_file_of_bad_input(tmp_path, capsys):
     (tmp_path / "bad.toml").write_text("[pipe]\ndiameter = 0.03\n")
     status, out, err = run_cli(capsys, "sweep", tmp_path / "bad.toml", "-o", tmp_path / "sw")
     assert status == 2 and f"{tmp_path / 'bad.toml'}: " in err, err
+
+
+def test_the_sweep_continues_this_cases_checkpoint_beside_another_runs_output(tmp_path, monkeypatch, capsys):
+    """The sweep takes an output as eulag run --resume does: this case's checkpoint beside another
+    run's dataset is continued, not refused."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.toml").write_text(_tiny_two_fluid(0.8))
+    (tmp_path / "b.toml").write_text(_tiny_two_fluid(0.7))
+    (tmp_path / "sw").mkdir()
+    assert run_cli(capsys, "run", "b.toml", "-o", "b.nc", "--quiet", "--no-plots")[0] == 1  # unconverged
+    assert run_cli(capsys, "run", "a.toml", "-o", "sw/tf_tiny.nc", "--quiet", "--no-plots")[0] == 0
+    (tmp_path / "sw" / "tf_tiny.nc.checkpoint.npz").write_bytes((tmp_path / "b.nc.checkpoint.npz").read_bytes())
+    status, out, err = run_cli(capsys, "sweep", "b.toml", "-o", "sw", "--quiet")
+    assert status == 1 and "holds a different case" not in err, (out, err)  # ran (unconverged again)
+    from eulag import runs
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "sw" / "tf_tiny.nc") as ds:
+        assert runs.same_case(dict(ds.attrs), runs.load_case("b.toml"))

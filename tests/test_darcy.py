@@ -9,6 +9,8 @@
 - Carman–Kozeny against its formula, and the cap.
 """
 
+import math
+
 import numpy as np
 import pytest
 
@@ -111,3 +113,12 @@ def test_quasi_steady_pressure_independent_of_p0():
         _steady(s, phi, u, 1.0, steps=200)
         ps.append(s.p.copy())
     assert np.allclose(ps[0], ps[1], rtol=1e-7, atol=1e-9 * np.abs(ps[0]).max())
+
+
+@pytest.mark.parametrize("ny", [1, 2, 3, 5, 7])
+def test_the_tube_grid_takes_any_number_of_cells_across(ny):
+    """The cells' areas inside the circle add up to the tube's cross-section for any ny (the
+    sampling is a multiple of ny; 3, 7, ... crashed when it was a fixed 1600)."""
+    g = TubeGrid(0.1, 7e-3, 5, ny)
+    assert g.area.shape == (ny, ny)
+    assert g.cross_area == pytest.approx(math.pi * 3.5e-3 ** 2, rel=2e-3)

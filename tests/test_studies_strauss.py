@@ -323,7 +323,11 @@ def test_a_slug_runs_record_is_judged_again_by_todays_rules(tmp_path):
     path = tmp_path / "p.record.json"
     for metrics, status, words in (({"max_overlap_per_d": 0.03, "grains_lost": 0}, "converged", None),
                                    ({"max_overlap_per_d": 0.09, "grains_lost": 0}, "not converged", "9 % of d"),
-                                   ({"max_overlap_per_d": 0.01, "grains_lost": 2}, "not converged", "2 grains lost")):
+                                   ({"max_overlap_per_d": 0.01, "grains_lost": 2}, "not converged", "2 grains lost"),
+                                   ({"max_overlap_per_d": 0.01, "grains_lost": 0, "porosity_clipped_cells": 7},
+                                    "not converged", "in 7 node-steps"),
+                                   ({"max_overlap_per_d": 0.01, "grains_lost": 0, "porosity_clipped_cells": 0},
+                                    "converged", None)):
         studies.write_record(path, case, studies.RunRecord("p", case, tmp_path / "p.nc", "converged",
                                                            metrics=metrics))
         rec = studies.read_record(path, case)

@@ -474,7 +474,8 @@ def _slug_record_verdict(case, metrics: dict, status: str, message: str) -> tupl
     from eulag.slug import record_verdict
 
     try:
-        ok, reason = record_verdict(case.data, metrics.get("grains_lost"), metrics.get("max_overlap_per_d"))
+        ok, reason = record_verdict(case.data, metrics.get("grains_lost"), metrics.get("max_overlap_per_d"),
+                                    metrics.get("porosity_clipped_cells"))
     except (ValueError, KeyError, TypeError):
         return status, message
     return (status, message) if ok else ("not converged", reason + " (judged again from the run's record)")

@@ -324,6 +324,7 @@ def extract_metrics(ds, case, outdir: Path | None = None, name: str = "", spacet
     m["x_window_m"] = list(xw)
     m["max_overlap_per_d"] = float(np.nanmax(ds["max_overlap_per_d"].values))
     m["grains_lost"] = int(ds["grains_lost"].values)
+    m["porosity_clipped_cells"] = int(ds.attrs.get("porosity_clipped_cells", 0))  # (slug.record_verdict)
     m["wall_time_s"] = float(ds.attrs.get("wall_time_s", math.nan))
     reg = classify_regime(ds, t_min=t_from)
     m.update(reg)
