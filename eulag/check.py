@@ -201,16 +201,13 @@ def saltation_velocities(case: Case) -> dict[str, float]:
     and density, the gas density and viscosity, the pipe diameter, and (Matsumoto 1977, Weber)
     the terminal velocity of ``fluids.drag.v_terminal``. Keys: "Rizk" (1973),
     "Matsumoto 1977" (fine- or coarse-particle branch as the correlation selects), "Weber"
-    (1981), "Geldart-Ling" (1990). Empty for a case without particles or with no particle
-    mass flow (every correlation gives 0 there).
+    (1981), "Geldart-Ling" (1990). Empty for a case without particles.
     """
     from fluids import saltation as s
 
     if case.particles is None:
         return {}
     _, m_p = _mass_flows(case)
-    if m_p <= 0.0:
-        return {}
     p, g, d_pipe = case.particles, case.gas, case.pipe.diameter
     v_t = _terminal_velocity(case)
     return {
@@ -232,8 +229,6 @@ def saltation_line(case: Case) -> str:
     if case.particles is None:
         return ""
     v = saltation_velocities(case)
-    if not v:
-        return "  saltation    n/a (particles.mass_loading = 0: no particle mass flow)"
     u0 = case.gas.bulk_velocity
     top_name = max(v, key=v.get)
     top = v[top_name]

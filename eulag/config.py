@@ -420,7 +420,8 @@ class ParticleConfig(_Section):
     density : float
         Particle material density [kg m-3], > gas.density and <= 25000.
     mass_loading : float
-        Particle mass flow rate / gas mass flow rate [1], >= 0.
+        Particle mass flow rate / gas mass flow rate [1], > 0 (a case without particles leaves
+        out [particles]).
     injection_rms : float
         Rms of the Gaussian injection velocity, each component [m s-1], >= 0 (default 0.5).
         The mean injection velocity is (bulk_velocity, 0, 0).

@@ -182,16 +182,15 @@ def validate_two_fluid_case(case: dict) -> None:
     if not solids["diameter"] < 0.2 * pipe["diameter"]:
         raise ValueError(f"solids.diameter = {_fmt(solids['diameter'])}: allowed a number < pipe.diameter / 5 "
                          f"({0.2 * pipe['diameter']:g}): a continuum of particles much smaller than the pipe")
-    from tfm.inlet import hinkle_1953_solids_velocity, inlet_solids_fraction
+    if case.get("numerics", {}).get("mode", SCHEMA["numerics"]["mode"][0]) == "developing":
+        from tfm.inlet import paper_inlet
 
-    u_in = float(hinkle_1953_solids_velocity(gas["superficial_velocity"], solids["diameter"], solids["density"],
-                                             gas["density"], pipe["diameter"]))
-    a_in = float(inlet_solids_fraction(solids["mass_flow"], solids["density"], u_in, pipe["diameter"]))
-    if not a_in < amax:
-        most = solids["mass_flow"] * amax / a_in
-        raise ValueError(f"solids.mass_flow = {_fmt(solids['mass_flow'])}: allowed a mass flow [kg s-1] below "
-                         f"{most:.3g}, whose inlet solids fraction (Hinkle's velocity {u_in:.3g} m/s, eqs. 22-23) "
-                         f"stays below friction.alpha_max = {amax:g} (here {a_in:.3g})")
+        try:  # the marched pipe starts from the paper's inlet (eqs. 20-23)
+            paper_inlet(gas["superficial_velocity"], solids["diameter"], solids["density"], gas["density"],
+                        pipe["diameter"], solids["mass_flow"], amax)
+        except ValueError as exc:
+            raise ValueError(f"solids.mass_flow = {_fmt(solids['mass_flow'])}: allowed a mass flow that enters the "
+                             f"developing pipe (numerics.mode) at the paper's inlet: {exc}") from None
 
 
 _CHECK_UNITS = {("pipe", "diameter"): "m", ("pipe", "length"): "m", ("gas", "density"): "kg m-3",
@@ -472,10 +471,13 @@ def checkpoint_problem(ckpt, case: dict):
 
 def budget_raised(attrs: dict, case: dict) -> bool:
     """Whether ``case`` allows more outer iterations than the run stored in a dataset's attributes
-    ``attrs`` had (``numerics.max_iterations``, which :func:`dataset_key` leaves out): its
-    unconverged result is then not the final answer of ``case``."""
+    ``attrs`` had (``numerics.max_iterations`` is not part of :func:`dataset_key`): its unconverged
+    result is then not the final answer of ``case``.  A fully developed run is compared by the
+    iterations it did (a resumed run may have done more than its own limit), a marched pipe by
+    the limit its stations had."""
     try:
-        stored = int(attrs["numerics.max_iterations"])
+        developing = attrs.get("numerics.mode") == "developing"
+        stored = int(attrs["numerics.max_iterations"] if developing else attrs["iterations"])
     except (KeyError, TypeError, ValueError):
         return False
     return int(resolved_case(case)["numerics"]["max_iterations"]) > stored

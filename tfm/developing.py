@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .inlet import hinkle_1953_solids_velocity, inlet_solids_fraction, seventh_power_profile
+from .inlet import paper_inlet, seventh_power_profile
 from .section import SectionDivergence, SectionProblem, SectionState, _Solver
 
 __all__ = ["MarchResult", "axial_stations", "inlet_state", "march_pipe"]
@@ -55,11 +55,7 @@ def inlet_state(solver: _Solver) -> SectionState:
     (mean U_g/(1 − α_s,inlet)) and solids (mean u_s,inlet of Hinkle), k and ε of the developed
     section's starting guess; Θ small."""
     pb = solver.pb
-    us_in = float(hinkle_1953_solids_velocity(pb.u_g, pb.d_s, pb.rho_s, pb.rho_g, pb.diameter))
-    a_in = float(inlet_solids_fraction(pb.m_s, pb.rho_s, us_in, pb.diameter))
-    if not 0.0 < a_in < pb.params.alpha_max:
-        raise ValueError(f"inlet solids fraction {a_in:.3g} (eq. 23 with the Hinkle velocity {us_in:.3g} m/s) "
-                         f"is outside (0, alpha_max = {pb.params.alpha_max})")
+    us_in, a_in = paper_inlet(pb.u_g, pb.d_s, pb.rho_s, pb.rho_g, pb.diameter, pb.m_s, pb.params.alpha_max)
     sec = solver.sec
     r = np.sqrt(sec.cz**2 + sec.cy**2)
     prof = seventh_power_profile(r, pb.diameter, 1.0)

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 __all__ = ["hinkle_1953_solids_velocity", "hinkle_particle_diameter", "inlet_solids_fraction",
-           "seventh_power_profile"]
+           "paper_inlet", "seventh_power_profile"]
 
 
 def hinkle_1953_solids_velocity(u_g, d_s, rho_s, rho_g, diameter):
@@ -71,6 +71,24 @@ def inlet_solids_fraction(m_s, rho_s, u_s, diameter):
     0.2458
     """
     return 4.0 * m_s / (rho_s * u_s * math.pi * diameter**2)
+
+
+def paper_inlet(u_g, d_s, rho_s, rho_g, diameter, m_s, alpha_max):
+    """(u_s, α_s) of the paper's inlet: Hinkle's solids velocity (eq. 22) and the solids fraction
+    it gives the mass flow (eq. 23) [m s-1, -].  ValueError (one line) when α_s is not in
+    (0, α_max): the mass flow cannot enter at Hinkle's velocity as a packing of these particles.
+
+    Examples
+    --------
+    >>> [round(v, 3) for v in paper_inlet(6.43, 160e-6, 1650.0, 33.0, 0.01, 0.194, 0.63)]
+    [6.088, 0.246]
+    """
+    u_s = float(hinkle_1953_solids_velocity(u_g, d_s, rho_s, rho_g, diameter))
+    a_s = float(inlet_solids_fraction(m_s, rho_s, u_s, diameter)) if u_s > 0.0 else math.inf
+    if not 0.0 < a_s < alpha_max:
+        raise ValueError(f"inlet solids fraction {a_s:.3g} (eq. 23 with the Hinkle velocity {u_s:.3g} m/s) "
+                         f"is outside (0, alpha_max = {alpha_max})")
+    return u_s, a_s
 
 
 def seventh_power_profile(r, diameter, mean):
