@@ -1165,7 +1165,7 @@ def _flat(d: dict, prefix: str = "") -> dict:
     return out
 
 
-def _plain(v: Any) -> Any:
+def _comparable_value(v: Any) -> Any:
     """A stored value as the comparison of :func:`case_differences` sees it (arrays and numpy
     scalars as Python values; a one-element list as its element: netCDF stores it so)."""
     if isinstance(v, np.ndarray):
@@ -1173,7 +1173,7 @@ def _plain(v: Any) -> Any:
     if isinstance(v, np.generic):
         v = v.item()
     if isinstance(v, (list, tuple)):
-        v = [_plain(x) for x in v]
+        v = [_comparable_value(x) for x in v]
         return v[0] if len(v) == 1 else v
     return v
 
@@ -1186,7 +1186,7 @@ def case_differences(stored: dict, mine: dict, *, there: str = "stored", limit: 
     missing = object()
     rows = []
     for key in sorted(set(a) | set(b)):
-        x, y = _plain(a.get(key, missing)), _plain(b.get(key, missing))
+        x, y = _comparable_value(a.get(key, missing)), _comparable_value(b.get(key, missing))
         if x == y or (isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y)):
             continue
         shown = ["(not set)" if v is missing else _fmt(v) for v in (x, y)]

@@ -270,3 +270,14 @@ def test_a_dense_phase_case_without_its_model_key_says_so():
         with pytest.raises(CaseError, match=rf'^\[{table}\]: a table of the {model} model, in a case without '
                                             rf'model = "{model}"'):
             Case.from_dict({"name": "x", table: {"a": 1}})
+
+
+def test_case_differences_compare_values_as_netcdf_stores_them():
+    """A one-element list is stored as a scalar attribute: not a difference; real ones are named."""
+    import numpy as np
+
+    from eulag.config import case_differences
+
+    assert case_differences({"pipe.sections": 3.56}, {"pipe.sections": np.array([3.56])}) == ""
+    assert case_differences({"numerics.seed": np.int64(1), "pipe.sections": np.float64(3.56)},
+                            {"numerics.seed": 3, "pipe.sections": [3.56]}) == "numerics.seed = 1 stored, 3 in this case"
