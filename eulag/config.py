@@ -1181,8 +1181,12 @@ def _comparable_value(v: Any) -> Any:
 def case_differences(stored: dict, mine: dict, *, there: str = "stored", limit: int = 3) -> str:
     """The keys in which two cases differ, for a message: ``"numerics.parcels = 1000 stored,
     2000 in this case"``, at most ``limit`` of them, "; "-separated ("" when none is found).
-    ``stored`` and ``mine``: flattened (``"section.key"``) or nested (TOML tables) dicts."""
+    ``stored`` and ``mine``: flattened (``"section.key"``) or nested (TOML tables) dicts.  A key of
+    :data:`LATER_KEYS` missing on a side (a case stored before it existed, or dropped at that value
+    by :func:`comparable_attrs`) reads as the value it had before it existed."""
     a, b = _flat(stored), _flat(mine)
+    if any("." in k and k.split(".")[0] in _SECTIONS for k in a):  # an Euler-Lagrange case
+        a, b = {**LATER_KEYS, **a}, {**LATER_KEYS, **b}
     missing = object()
     rows = []
     for key in sorted(set(a) | set(b)):

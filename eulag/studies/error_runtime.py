@@ -163,7 +163,10 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
             row["err_total"] = math.sqrt(sum(sq_total) / 3.0)
             row["err_disc"] = math.sqrt(sum(sq_disc) / 3.0)
         rows.append(row)
-    cand = [r for r in rows if r["axis"] != "reference"]
+    # the front takes converged runs measured against a converged reference: a run stopped at
+    # max_passes is not a setting to recommend, and an unconverged reference is no reference
+    ref_ok = records[ref.name].status == "converged"
+    cand = [r for r in rows if r["axis"] != "reference" and ref_ok and records[r["run"]].status == "converged"]
     front = pareto_front([r["time_s"] for r in cand], [r.get("err_total", math.nan) for r in cand])
     for i, r in enumerate(cand):
         r["pareto"] = "yes" if i in front else ""
@@ -227,7 +230,8 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
     write_report(outdir, "error-runtime", args, title="Error against run time", intro=intro,
                  columns=columns, rows=rows, figures=[fig],
                  sections=[("Pareto front (total error against run time)", "\n".join(pareto_lines) or
-                            "no run finished with an error estimate")],
+                            ("no converged run finished with an error estimate" if ref_ok else
+                             "none: the reference run did not converge"))],
                  t_start=t_start,
                  settings=_settings_text([_setting_case(case, r, args.quick) for r in settings], args.quick),
                  records=list(records.values()))

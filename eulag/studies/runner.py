@@ -111,6 +111,12 @@ def _output_dir(args, made: list | None = None) -> Path:
         raise _BadInput(f"-o {out}: no such directory; --report reads the runs of an existing output folder")
     if getattr(args, "report", False):
         _check_report_settings(args, out)
+        runs_here = [p for p in out.iterdir() if p.name.endswith((".record.json", ".failed.json", ".nc"))
+                     or ".checkpoint" in p.name]
+        if not runs_here:
+            raise _BadInput(f"--report: {out} holds no run of its own (no dataset, run record or checkpoint: its "
+                            "tables were written from runs that are not kept here); the folder is left as it is; "
+                            "allowed: a folder with the study's runs, or --resume to run them")
     if made is not None:
         made.extend(p for p in reversed([out, *out.parents]) if str(p) not in ("", ".") and not p.exists())
     try:
@@ -230,9 +236,9 @@ def _warm_up(case: Case, args=None) -> None:
     tiny = case.replace(numerics=_WARMUP_NUMERICS)
     t0 = time.perf_counter()
     try:
-        from eulag.runs import run
+        from eulag.runs import execute
 
-        run(tiny)
+        execute(tiny)  # (its verdict is of no interest: no warning)
     except Exception:  # noqa: BLE001 - only compiles; the timed run reports any failure
         pass
     if args is not None:
@@ -397,8 +403,28 @@ def _unfinished_record(args, name: str, case: Case, out: Path, ckpt: Path, label
                f"passes, residual {res:.3g}, relaxation {alpha:g}); --resume continues it")
         _log(args, f"  {label}: unfinished: {msg}")
         return RunRecord(name, case, out, "unfinished", msg, spent, done, res, alpha)
+    _refuse_records_of_another_case(name, case, out.parent)
     _log(args, f"  {label}: not run (no dataset, record or checkpoint of this case here)")
     return RunRecord(name, case, out, "not run", "no dataset, record or checkpoint of this case here")
+
+
+def _refuse_records_of_another_case(name: str, case, folder: Path) -> None:
+    """--report: a run record (or failed record) of this row that belongs to another case — made
+    with the defaults or options of another code — would turn into a "not run" row and replace
+    the folder's table; refuse instead, naming the keys that differ, and write nothing."""
+    from eulag.config import case_differences
+
+    for path in (folder / f"{name}.record.json", folder / f"{name}.failed.json"):
+        try:
+            stored = json.loads(json.loads(path.read_text())["case"])
+            mine = json.loads(_canonical(case))
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        if isinstance(stored, dict) and isinstance(mine, dict):
+            what = case_differences(stored, mine, there="in the record")
+            raise _BadInput(f"--report: {path} is a run of another case than today's {name}"
+                            f"{f' ({what})' if what else ''}; the folder is left as it is; allowed: --report with "
+                            "the code and options that made these runs, or --resume to run today's cases")
 
 
 def _to_json(v):
