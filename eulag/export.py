@@ -73,15 +73,11 @@ def export_path(vts_path: str | os.PathLike) -> Path:
     if path.suffix.lower() not in (".vts", ".vtu"):
         raise ExportError(f"{path}: unknown suffix {path.suffix or '(none)'!r}; allowed: .vts (VTK structured "
                           "grid) or .vtu (VTK unstructured grid)")
-    if path.is_symlink() or (path.exists() and not path.is_file()):
-        what = "a symbolic link" if path.is_symlink() else "a directory" if path.is_dir() else "not a regular file"
-        raise ExportError(f"{path}: is {what} (the file is written beside it and renamed over it); allowed: "
-                          "a regular file path")
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise ExportError(f"{path}: directory {parent} does not exist; allowed: a path in an existing directory")
-    if not os.access(parent, os.W_OK):
-        raise ExportError(f"{path}: directory {parent} is not writable")
+    from eulag.files import target_problem
+
+    problem = target_problem(path)
+    if problem is not None:
+        raise ExportError(f"{path}: {problem}")
     return path
 
 

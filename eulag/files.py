@@ -49,3 +49,24 @@ def savez_atomic(path: str | os.PathLike, arrays: dict) -> Path:
 
     return atomic_write(path, write)
 
+
+
+def target_problem(path: Path) -> str | None:
+    """Why a file cannot be written at ``path`` the way :func:`atomic_write` writes (a temporary
+    file beside it, renamed over it), as the end of a one-line message; None when it can: a
+    symbolic link, a directory or another non-regular file in its place, or a parent directory
+    that does not exist or is not writable."""
+    path = Path(path)
+    if path.is_symlink():
+        return ("is a symbolic link (the file is written beside it and renamed over it, which would replace the "
+                "link); allowed: a regular file path")
+    if path.is_dir():
+        return "is a directory; allowed: a file path"
+    if path.exists() and not path.is_file():
+        return "exists and is not a regular file (a device, pipe or socket); allowed: a regular file path"
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        return f"directory {parent} does not exist; allowed: a path in an existing directory"
+    if not os.access(parent, os.W_OK):
+        return f"directory {parent} is not writable"
+    return None

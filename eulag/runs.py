@@ -203,21 +203,13 @@ def output_path(out: str | Path | None, name: str, label: str = "-o") -> Path:
     if out is not None and not str(out).strip():
         raise BadInput(f"{label} '': an empty path; allowed: a NetCDF file path ending in .nc")
     out = Path(out) if out else Path(f"{name}.nc")
-    if out.is_symlink():
-        raise BadInput(f"{label} {out}: is a symbolic link (the output is written to a temporary file and "
-                       "renamed, which would replace the link); allowed: a regular file path")
-    if out.exists() and out.is_dir():
-        raise BadInput(f"{label} {out}: is a directory; allowed: a file path")
-    if out.exists() and not out.is_file():
-        raise BadInput(f"{label} {out}: exists and is not a regular file (a device, pipe or socket); "
-                       "allowed: a regular file path")
-    if out.suffix != ".nc":
-        raise BadInput(f"{label} {out}: not a NetCDF file name; allowed: a path ending in .nc")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise BadInput(f"{label} {out}: directory {parent} does not exist; allowed: a path in an existing directory")
-    if not os.access(parent, os.W_OK):
-        raise BadInput(f"{label} {out}: directory {parent} is not writable")
+    from eulag.files import target_problem
+
+    problem = target_problem(out)
+    if problem is None and out.suffix != ".nc":
+        problem = "not a NetCDF file name; allowed: a path ending in .nc"
+    if problem is not None:
+        raise BadInput(f"{label} {out}: {problem}")
     return out
 
 

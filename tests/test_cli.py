@@ -423,11 +423,12 @@ def test_report_with_other_quick_or_parcels_settings_is_refused(tmp_path, monkey
         assert status == 2 and len(err.splitlines()) == 1, err
         assert "were made by `eulag study stability --quick --only U0_30`" in err and differs in err, err
     assert (folder / "README.md").read_text() == readme and sorted(p.name for p in folder.iterdir()) == ["README.md"]
-    # the same settings, in either spelling, are a report of those runs
+    # the same settings, in either spelling, are a report of those runs (here the folder keeps none
+    # of them, which is the next refusal: a README alone is no run to report)
     (folder / "README.md").write_text(readme.replace("--quick --only", "--quick --parcels=300 --only"))
     status, out, err = run_cli(capsys, "study", "stability", "--report", "--quick", "--parcels", "300", "--only",
                                "U0_30", "-o", folder)
-    assert status == 0, err
+    assert status == 2 and "were made by" not in err and "holds no run of its own" in err, err
 
 
 def test_a_file_that_is_not_a_dataset_is_bad_input_in_one_short_line(tmp_path, monkeypatch, capsys):
