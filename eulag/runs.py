@@ -456,7 +456,7 @@ def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
     ckpt = None if single_phase else checkpoint_path(out, case)
     if resume:
         state = checkpoint_state(ckpt, case) if ckpt is not None else None
-        if not resumable_checkpoint(out, case):
+        if state is None or state[2] is not None:  # no checkpoint this case continues (resumable_checkpoint)
             dataset_state(out, case)  # raises for another case's output or an unreadable one
         elif out.is_file() and notify is not None:  # a checkpoint of this case continues, whatever is at out
             try:
