@@ -96,7 +96,11 @@ def study_tsuji_morikawa(args, outdir: Path, t_start: float) -> int:
                Column("simulated", ""), Column("stderr", "")], points)
     figures = []
     if curves:
-        figures.append(_tm_figure(outdir / "tsuji_morikawa_profiles.png", cases, curves, meas, x))
+        stations = sorted({round(r.metrics["x_station"], 4) for r in records if "x_station" in r.metrics})
+        where = f"x = {x:g} m" if stations in ([], [round(x, 4)]) else \
+            f"station x = {', '.join(f'{s:g}' for s in stations)} m (nearest {x:g} m)"
+        figures.append(_tm_figure(outdir / "tsuji_morikawa_profiles.png", cases, curves, meas, where,
+                                  quick=bool(getattr(args, "quick", False))))
     figures += sorted(figdir.glob("*_section*.png")) if figdir.is_dir() else []
     prov = "\n".join("    " + line for line in provenance(ref_path))
     intro = [
@@ -127,7 +131,7 @@ def study_tsuji_morikawa(args, outdir: Path, t_start: float) -> int:
     return _finish(args, outdir, records, allowed_failures=False)
 
 
-def _tm_figure(path: Path, cases, curves, meas, x) -> Path:
+def _tm_figure(path: Path, cases, curves, meas, where: str, quick: bool = False) -> Path:
     fig = _figure()(11.0, 5.6)
     axes = fig.subplots(1, 2, sharey=True)
     styles = {10.0: "-", 15.0: "--"}
@@ -147,8 +151,8 @@ def _tm_figure(path: Path, cases, curves, meas, x) -> Path:
                 lo, hi = c["particle"] - 2 * c["particle_se"], c["particle"] + 2 * c["particle_se"]
                 ax.fill_betweenx(c["y"], lo, hi, color=colours.get(cpl, "k"), alpha=0.12, lw=0)
         ax.set_xlabel("u_x / U0 [1]")
-        ax.set_title(f"{phase}, x = {x:g} m" + ("  (band: ±2 std. errors)" if phase == "particle" else ""),
-                     fontsize=10)
+        ax.set_title(f"{phase}, {where}" + ("  (band: ±2 std. errors)" if phase == "particle" else "")
+                     + ("\nquick mode: checks the machinery, not results" if quick else ""), fontsize=10)
         ax.set_xlim(left=0.0)
         ax.set_ylim(-1.0, 1.0)
         ax.grid(alpha=0.3)
