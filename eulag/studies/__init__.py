@@ -154,14 +154,18 @@ def _common(p, name: str, only: str | None = None) -> None:
     if only is not None:
         p.add_argument("--only", metavar="LIST", help=only)
     p.add_argument("--quick", action="store_true",
-                   help="tiny grids, few parcels, two passes (checks the machinery; not results)")
+                   help="tiny grids, few parcels, two passes (checks the machinery; not results). A "
+                        "first run compiles a particle kernel per physics-option set, 1-2.5 min each from a "
+                        "cold numba cache (scenes-ablation: about 10 min)")
     p.add_argument("-o", "--output-dir", metavar="DIR", default=None,
                    help=f"output folder (default: results/{name}/)")
     p.add_argument("--resume", action="store_true",
                    help="keep finished runs, continue interrupted ones from their checkpoints")
     p.add_argument("--report", action="store_true",
                    help="run nothing: write the table from the datasets, records and checkpoints "
-                        "already in the output folder (an unfinished run's row says how far it got)")
+                        "already in the output folder (an unfinished run's row says how far it got); "
+                        "refused, leaving the folder as it is, when its runs are of other cases or it "
+                        "keeps none")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     if name not in ("error-runtime", "ding-friction", "strauss"):  # an axis there; no parcels in dense models
         p.add_argument("--parcels", type=_positive_int, metavar="N",
