@@ -1185,7 +1185,7 @@ def case_differences(stored: dict, mine: dict, *, there: str = "stored", limit: 
     :data:`LATER_KEYS` missing on a side (a case stored before it existed, or dropped at that value
     by :func:`comparable_attrs`) reads as the value it had before it existed."""
     a, b = _flat(stored), _flat(mine)
-    if any("." in k and k.split(".")[0] in _SECTIONS for k in a):  # an Euler-Lagrange case
+    if any(k.startswith("physics.") for k in a):  # an Euler-Lagrange case ([physics] is its own table)
         a, b = {**LATER_KEYS, **a}, {**LATER_KEYS, **b}
     missing = object()
     rows = []

@@ -205,9 +205,9 @@ def output_path(out: str | Path | None, name: str, label: str = "-o") -> Path:
     out = Path(out) if out else Path(f"{name}.nc")
     from eulag.files import target_problem
 
-    problem = target_problem(out)
-    if problem is None and out.suffix != ".nc":
-        problem = "not a NetCDF file name; allowed: a path ending in .nc"
+    problem = "not a NetCDF file name; allowed: a path ending in .nc" if out.suffix != ".nc" else None
+    if problem is None or out.is_symlink() or out.is_dir():  # what is in its place is named first
+        problem = target_problem(out) or problem
     if problem is not None:
         raise BadInput(f"{label} {out}: {problem}")
     return out

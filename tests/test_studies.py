@@ -427,6 +427,20 @@ def test_error_runtime_quick(tmp_path):
     assert sum("best" in r["pareto"] for r in others) == (1 if front else 0)
     text = (tmp_path / "README.md").read_text()
     assert "Pareto front" in text and (front or "no converged run" in text or "reference run did not" in text)
+    # the front over the converged runs only: the records edited to say so, then --report
+    for p in tmp_path.glob("*.nc"):
+        p.unlink()  # reported from the records
+    converged = {"centre", "grid_10x4x8"}
+    for name in converged | {"reference"}:
+        rec = tmp_path / f"{name}.record.json"
+        data = json.loads(rec.read_text())
+        data["status"] = "converged"
+        rec.write_text(json.dumps(data))
+    assert study("error-runtime", BASE, "--quick", "--quiet", "--report", "-o", tmp_path) == 0
+    table = check_report(tmp_path, "error-runtime", 9)
+    front = {r["run"] for r in table if r["pareto"].startswith("yes")}
+    assert front and front <= converged, front
+    assert sum("best" in r["pareto"] for r in table) == 1
 
 
 # ------------------------------------------------------------------------------ stability

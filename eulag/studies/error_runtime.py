@@ -188,7 +188,7 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
                Column("meas_particle", "part. vs meas. [% U0]", "{:.3g}"),
                Column("pareto", "Pareto"), Column("converged", "converged"),
                Column("passes", "passes", "{:d}"), Column("commit", "commit")]
-    fig = _er_figure(outdir / "error_runtime.png", rows, cand, front)
+    fig = _er_figure(outdir / "error_runtime.png", [r for r in rows if r["axis"] != "reference"], cand, front, rows)
     pareto_lines = []
     for i in front:
         r = cand[i]
@@ -238,17 +238,21 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
     return _finish(args, outdir, list(records.values()), allowed_failures=False)
 
 
-def _er_figure(path: Path, rows, cand, front) -> Path:
+def _er_figure(path: Path, runs, cand, front, rows) -> Path:
+    """Error against run time of every run (``runs``); the Pareto front over ``cand`` (the
+    converged runs; an unconverged run is drawn in grey)."""
     fig = _figure()(11.5, 4.8)
     ax1, ax2 = fig.subplots(1, 2)
     markers = {"centre": ("k", "*"), "grid": ("C0", "s"), "parcels": ("C1", "o"), "step factor": ("C2", "^"),
                "step rule": ("C3", "D")}
     seen = set()
-    for r in cand:
+    for r in runs:
         t, e = r.get("time_s"), r.get("err_total")
         if not (isinstance(t, float) and isinstance(e, float) and t > 0 and e > 0):
             continue
         col, mk = markers.get(r["axis"], ("0.5", "x"))
+        if not any(r is c for c in cand):
+            col = "0.7"  # not converged (or no converged reference): no candidate for the front
         ax1.loglog([t], [e], mk, color=col, label=None if r["axis"] in seen else r["axis"])
         d = r.get("err_disc")
         if isinstance(d, float) and d > 0:
@@ -270,6 +274,7 @@ def _er_figure(path: Path, rows, cand, front) -> Path:
     if len(pts) > 1:
         ax1.loglog(*zip(*pts), "-", color="0.4", lw=1, label="Pareto front")
     ax1.set_xlabel("run wall time [s]")
+    ax1.set_title("grey: not converged (not a candidate for the front)", fontsize=9)
     ax1.set_ylabel("error vs reference [%] (filled: total, open: discretisation part)")
     ax1.grid(alpha=0.3, which="both")
     if seen:

@@ -111,11 +111,15 @@ def _output_dir(args, made: list | None = None) -> Path:
         raise _BadInput(f"-o {out}: no such directory; --report reads the runs of an existing output folder")
     if getattr(args, "report", False):
         _check_report_settings(args, out)
-        runs_here = [p for p in out.iterdir() if p.name.endswith((".record.json", ".failed.json", ".nc"))
-                     or ".checkpoint" in p.name]
+        try:
+            runs_here = [p for p in out.iterdir() if p.name.endswith((".record.json", ".failed.json", ".nc"))
+                         or ".checkpoint" in p.name]
+        except OSError as exc:
+            raise _BadInput(f"--report: {out} cannot be listed ({exc.strerror or exc})") from None
         if not runs_here:
             raise _BadInput(f"--report: {out} holds no run of its own (no dataset, run record or checkpoint: its "
-                            "tables were written from runs that are not kept here); the folder is left as it is; "
+                            "tables were written from runs that are not kept here); the folder's README and tables "
+                            "are left as they are; "
                             "allowed: a folder with the study's runs, or --resume to run them")
     if made is not None:
         made.extend(p for p in reversed([out, *out.parents]) if str(p) not in ("", ".") and not p.exists())
@@ -416,14 +420,21 @@ def _refuse_records_of_another_case(name: str, case, folder: Path) -> None:
 
     for path in (folder / f"{name}.record.json", folder / f"{name}.failed.json"):
         try:
-            stored = json.loads(json.loads(path.read_text())["case"])
-            mine = json.loads(_canonical(case))
+            data = json.loads(path.read_text())
+            stored, mine = json.loads(data["case"]), json.loads(_canonical(case))
         except (OSError, ValueError, KeyError, TypeError):
+            continue
+        keep = "the folder's README and tables are left as they are"
+        if data["case"] == _canonical(case):  # today's case in a record layout this code does not read
+            if path.name.endswith(".record.json") and data.get("version") != RECORD_VERSION:
+                raise _BadInput(f"--report: {path} is a record of version {data.get('version')} (this code reads "
+                                f"version {RECORD_VERSION}); {keep}; allowed: --report with the code that wrote "
+                                "it, or --resume to run the case again")
             continue
         if isinstance(stored, dict) and isinstance(mine, dict):
             what = case_differences(stored, mine, there="in the record")
             raise _BadInput(f"--report: {path} is a run of another case than today's {name}"
-                            f"{f' ({what})' if what else ''}; the folder is left as it is; allowed: --report with "
+                            f"{f' ({what})' if what else ''}; {keep}; allowed: --report with "
                             "the code and options that made these runs, or --resume to run today's cases")
 
 
