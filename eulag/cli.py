@@ -186,7 +186,8 @@ def cmd_run(args) -> int:
         raise _Fail(str(exc), exc.status) from None
     _check_dask(args)
     coupled = isinstance(case, Case) and case.particles is not None
-    if not coupled and (getattr(args, "dask_local", None) is not None or getattr(args, "scheduler", None) is not None):
+    dask = getattr(args, "dask_local", None) is not None or getattr(args, "scheduler", None) is not None
+    if not coupled and dask:
         what = "a single-phase case" if isinstance(case, Case) else f"a model = \"{case.model}\" case"
         raise _Fail(f"--dask-local/--scheduler: {what} runs in this process (Dask spreads the particle passes "
                     "of a coupled Euler-Lagrange run); allowed: leave them out, or `eulag sweep` to spread "
@@ -338,8 +339,9 @@ def _coupled_summary(case, loop, ds, out) -> str:
         f"{float(ds.solids_pressure_drop_ratio):.4g}, lambda_Z {float(ds.additional_pressure_loss_coefficient):.4g}",
         *_replica_pressure_gradient_line(ds),
         f"  secondary    {strength}",
-        f"  parcels      {int(h.parcels[-1])} per final pass; stuck {int(ds.attrs.get('parcels_stuck_final', 0))} in the "
-        f"final passes ({int(sum(h.stuck))} in all passes), lost {int(sum(h.lost))}",
+        f"  parcels      {int(h.parcels[-1])} per final pass; stuck "
+        f"{int(ds.attrs.get('parcels_stuck_final', 0))} in the final passes ({int(sum(h.stuck))} in all passes), "
+        f"lost {int(sum(h.lost))}",
         *_collision_momentum_line(case, h),
         *_collision_force_line(case, ds),
         *_conveying_lines(case, ds),

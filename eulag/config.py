@@ -437,7 +437,8 @@ class ParticleConfig(_Section):
     diameter: float = _param(NUMBER, "particle diameter, < pipe.diameter / 5", unit="m", gt=0.0)
     density: float = _param(NUMBER, "particle density, > gas.density", unit="kg m-3", gt=0.0,
                             le=25000.0)
-    mass_loading: float = _param(NUMBER, "particle / gas mass flow (a case without particles leaves out [particles])", gt=0.0, le=1000.0)
+    mass_loading: float = _param(NUMBER, "particle / gas mass flow (a case without particles leaves out "
+                                 "[particles])", gt=0.0, le=1000.0)
     injection_rms: float = _param(NUMBER, "injection velocity rms per component", unit="m s-1",
                                   default=0.5, ge=0.0)
     restitution: float = _param(NUMBER, "particle-particle restitution coefficient", default=0.9,
