@@ -105,7 +105,8 @@ SCHEMA = {
 _TOP = ("name", "description", "model")
 
 #: [experiment]: the measurements beside a case (Table 1 of Ding et al.; not used by the solver),
-#: key -> (check, allowed)
+#: key -> (check, allowed): supplementary gas [m3 h-1], inlet solids fraction [-] and velocity
+#: [m s-1], outlet pressure [Pa], measured pressure drop over the pipe [Pa]
 EXPERIMENT = {"supplementary_gas": _num(0, 1e6), "inlet_alpha_s": _num(0, 1),
               "inlet_solids_velocity": _num(0, 200), "outlet_pressure": _num(0, 1e9),
               "pressure_drop": _num(0, 1e9)}
@@ -490,11 +491,13 @@ def compared_cases(attrs: dict, case: dict) -> tuple[dict, dict]:
 
 
 def same_case(attrs: dict, case: dict) -> bool:
-    """Whether a dataset's attributes ``attrs`` are those of a result of ``case``."""
+    """Whether a dataset's attributes ``attrs`` are those of a result of ``case`` (the cases
+    :func:`compared_cases` gives are equal)."""
     try:
-        return attrs.get("case_json") == dataset_key(case)
+        stored, mine = compared_cases(attrs, case)
     except (ValueError, KeyError, TypeError):
         return False
+    return stored == mine
 
 
 def run_two_fluid(case: dict, out: Path | None, resume: bool = False, progress: bool = False):

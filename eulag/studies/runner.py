@@ -415,7 +415,9 @@ def _unfinished_record(args, name: str, case: Case, out: Path, ckpt: Path, label
 def _refuse_records_of_another_case(name: str, case, folder: Path) -> None:
     """--report: a run record (or failed record) of this row that belongs to another case — made
     with the defaults or options of another code — would turn into a "not run" row and replace
-    the folder's table; refuse instead, naming the keys that differ, and write nothing."""
+    the folder's table; refuse instead, naming the keys that differ (or the record's version),
+    before the README, the tables and the study's figures are written (rows before this one may
+    have refreshed their records from their datasets)."""
     from eulag.config import case_differences
 
     for path in (folder / f"{name}.record.json", folder / f"{name}.failed.json"):
