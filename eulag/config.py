@@ -601,7 +601,9 @@ class NumericsConfig(_Section):
     axial_cells : int
         Axial stations, >= 10 (default 400); ignored in periodic mode.
     radial_cells : int
-        Radial rings of the cross-section, >= 4 (default 20).
+        Radial rings of the cross-section, >= 4 (default 20), and enough that no ring is more
+        than 4 times as thick as the next one outward (rans.mesh.MAX_RING_GROWTH: the rings
+        grow geometrically from the wall cell, which is thin in a large pipe at high Re).
     azimuthal_cells : int
         Azimuthal sectors, >= 8 and even, so the mesh is mirror-symmetric about the vertical
         diameter (default 40).
@@ -911,6 +913,16 @@ class Case:
                          f"a y+ whose wall cell fits the pipe: at Re = {re:.4g} ({given}) the wall cell "
                          f"would be {thickness:.3g} m thick in a pipe of radius {_num(0.5 * d)} m; lower "
                          "numerics.first_cell_yplus or raise the Reynolds number")
+        from rans.mesh import MAX_RING_GROWTH, radial_growth, rings_for_growth
+
+        growth = radial_growth(0.5 * d, n.radial_cells, thickness)
+        if growth > MAX_RING_GROWTH:
+            raise _error("numerics.radial_cells", n.radial_cells, "out of range",
+                         f"enough rings that each is at most {MAX_RING_GROWTH:g} times as thick as the "
+                         f"next one outward (here {growth:.3g}: a wall cell {thickness:.3g} m thick, its "
+                         f"centre at y+ = {_num(yplus)}, in a pipe of radius {_num(0.5 * d)} m at Re = "
+                         f"{re:.4g}): at least {rings_for_growth(0.5 * d, thickness)} radial cells, or "
+                         "raise numerics.first_cell_yplus")
 
     # -- construction -------------------------------------------------------
 

@@ -29,7 +29,14 @@ import numba
 import numpy as np
 from fluids.friction import Colebrook
 
-__all__ = ["PipeMesh", "cell_index", "locate_cell", "radial_edges", "ring_centre_radius"]
+__all__ = ["MAX_RING_GROWTH", "PipeMesh", "cell_index", "locate_cell", "radial_edges", "radial_growth",
+           "ring_centre_radius"]
+
+#: Largest ratio allowed between the thicknesses of neighbouring rings (``radial_growth``).  The
+#: march of a 0.3 m pipe at Re = 10^6 on 5 rings (wall cell at y+ 30, growth 6.4 per ring)
+#: diverged in its first station with reversed axial flow; on 6 rings (growth 3.9) it ran.
+#: Accurate finite-volume meshes keep the growth near 1.2; beyond 4 the mesh is refused.
+MAX_RING_GROWTH = 4.0
 
 
 def ring_centre_radius(r0, r1):
@@ -64,6 +71,20 @@ def wall_cell_thickness(diameter, first_cell_yplus, bulk_velocity, density, visc
     u_tau = bulk_velocity * math.sqrt(f_d / 8.0)
     y_wall = first_cell_yplus * viscosity / (density * u_tau)
     return _wall_cell_thickness(0.5 * diameter, y_wall), u_tau
+
+
+def radial_growth(radius, radial_cells, wall_thickness):
+    """Largest thickness ratio of neighbouring rings of :func:`radial_edges` (1 when uniform)."""
+    sizes = np.diff(radial_edges(radius, radial_cells, wall_thickness))
+    return float(np.max(sizes[:-1] / sizes[1:])) if sizes.size > 1 else 1.0
+
+
+def rings_for_growth(radius, wall_thickness, limit=MAX_RING_GROWTH, most=400):
+    """The fewest rings (>= 2) whose :func:`radial_growth` is at most ``limit`` (``most`` if none)."""
+    for n in range(2, most + 1):
+        if radial_growth(radius, n, wall_thickness) <= limit:
+            return n
+    return most
 
 
 def radial_edges(radius, radial_cells, wall_thickness):

@@ -320,6 +320,8 @@ def test_output_that_is_not_a_regular_nc_file_is_refused_and_left_alone(tmp_path
     ("bulk_velocity = 10.0\ninlet_k = 1.0\n\n[numerics]", "bulk_velocity = 2.0\ninlet_k = 0.04\n\n[numerics]\n"
      "first_cell_yplus = 500", "numerics.first_cell_yplus = 500"),
     ("diameter = 0.0305", "diameter = 1" + "0" * 400, "pipe.diameter = "),
+    # a 0.3 m pipe on 4 rings: each ring 8 times as thick as the next one out from the 2 mm wall cell
+    ("diameter = 0.0305", "diameter = 0.3", "numerics.radial_cells = 4"),
     # 400 x 1000 x 4000 cells of a developing pipe (a periodic one has a single station)
     ('mode = "periodic"', 'mode = "developing"', "numerics.axial_cells x radial_cells x azimuthal_cells"),
 ])
@@ -328,6 +330,8 @@ def test_values_that_clash_or_overflow_are_bad_input_naming_the_keys(tmp_path, c
     text = TINY.replace(old, new)
     if "developing" in new:
         text = text.replace("radial_cells = 8\nazimuthal_cells = 16", "radial_cells = 1000\nazimuthal_cells = 4000")
+    if "0.3" in new:
+        text = text.replace("radial_cells = 8", "radial_cells = 4")
     case = tmp_path / "clash.toml"
     case.write_text(text)
     status, out, err = run_cli(capsys, "check", case)
@@ -363,11 +367,13 @@ def test_dense_model_cases_follow_the_name_rule_and_their_cross_checks(tmp_path,
         # a wall cell wider than the radius at a low gas velocity
         "tf_yplus": re.sub(r"(?m)^first_cell_yplus = .*$", "first_cell_yplus = 900.0",
                            re.sub(r"(?m)^superficial_velocity = .*$", "superficial_velocity = 0.5", tf)),
+        # two rings: the inner one 45 times as thick as the wall ring
+        "tf_rings": re.sub(r"(?m)^radial_cells = .*$", "radial_cells = 2", tf),
     }
     expected = {"slug_path": 'name = "a/b"', "tf_escape": 'name = "../escape"', "tf_empty": 'name = ""',
                 "tf_light": "solids.density = 1.0", "slug_huge": "tube.length_m = ",
                 "slug_mm": "tube.diameter_m = 7.0", "slug_bar": "gas.pressure_Pa = 1.01325",
-                "tf_yplus": "numerics.first_cell_yplus = 900.0"}
+                "tf_yplus": "numerics.first_cell_yplus = 900.0", "tf_rings": "numerics.radial_cells = 2"}
     for label, text in bad.items():
         path = tmp_path / f"{label}.toml"
         path.write_text(text)

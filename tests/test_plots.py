@@ -387,7 +387,7 @@ def test_a_failing_figure_keeps_the_dataset_and_says_so_even_quietly(tmp_path, c
     from eulag.config import CASES_DIR
 
     text = (CASES_DIR / "two_fluid" / "ding_qs0.8.toml").read_text()
-    text = re.sub(r"(?m)^radial_cells = \d+", "radial_cells = 4", text)
+    text = re.sub(r"(?m)^radial_cells = \d+", "radial_cells = 5", text)
     text = re.sub(r"(?m)^azimuthal_cells = \d+", "azimuthal_cells = 8", text)
     (tmp_path / "tf.toml").write_text(text)
 

@@ -50,3 +50,19 @@ def test_locate_matches_brute_force_search():
     assert np.all(io == -1)
     # the compiled kernel agrees with its Python version
     assert locate_cell.py_func(1.0, y[0], z[0], 4.0, 40, m.r_edges, 20) == locate_cell(1.0, y[0], z[0], 4.0, 40, m.r_edges, 20)
+
+
+def test_ring_growth_and_the_fewest_rings_that_keep_it():
+    from rans.mesh import MAX_RING_GROWTH, radial_edges, radial_growth, rings_for_growth
+
+    radius, wall = 0.15, 4.72e-4  # the 0.3 m pipe at Re = 1e6, wall cell centre at y+ = 30
+    for n in (3, 5, 6, 12):
+        sizes = np.diff(radial_edges(radius, n, wall))
+        q = sizes[:-1] / sizes[1:]
+        assert radial_growth(radius, n, wall) == pytest.approx(q.max(), rel=1e-12)
+        # geometric from the ring next to the wall ring (as thick as it) inward
+        assert np.allclose(q[:-1], q[0], rtol=1e-6) and q[-1] == pytest.approx(1.0, rel=1e-9)
+    n = rings_for_growth(radius, wall)
+    assert radial_growth(radius, n, wall) <= MAX_RING_GROWTH < radial_growth(radius, n - 1, wall)
+    assert n == 6  # growth 3.9 on 6 rings, 6.4 on 5
+    assert radial_growth(0.01525, 20, 5e-4) == pytest.approx(1.0, abs=0.05)  # the base case: near uniform

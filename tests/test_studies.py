@@ -490,6 +490,18 @@ def test_stability_quick_subset(tmp_path):
     assert "3.4 mm pellets" in (tmp_path / "README.md").read_text()
 
 
+def test_stability_quick_large_pipe_gets_the_rings_its_wall_cell_needs():
+    from rans.mesh import MAX_RING_GROWTH, radial_growth, wall_cell_thickness
+
+    cases = {name: c for name, _, c in studies.stability_cases(quick=True)}
+    pipe = cases["pipe_0.3m_Re1e6"]
+    assert isinstance(pipe, Case) and pipe.numerics.radial_cells == 6  # the quick grid's 5 grow 6.4 per ring
+    g = pipe.gas
+    wall, _ = wall_cell_thickness(0.3, pipe.numerics.first_cell_yplus, g.bulk_velocity, g.density, g.viscosity)
+    assert radial_growth(0.15, 6, wall) <= MAX_RING_GROWTH
+    assert all(c.numerics.radial_cells == 5 for n, c in cases.items() if n not in ("pipe_0.3m_Re1e6", "cells_4x"))
+
+
 @pytest.mark.slow
 def test_stability_quick_all(tmp_path):
     assert study("stability", "--quick", "--quiet", "-o", tmp_path) == 0

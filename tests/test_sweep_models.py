@@ -23,7 +23,7 @@ def _slug_case(path):
 
 def _two_fluid_case(path):
     text = (CASES_DIR / "two_fluid" / "ding_qs0.8.toml").read_text()
-    text = re.sub(r"(?m)^radial_cells = \d+", "radial_cells = 4", text)
+    text = re.sub(r"(?m)^radial_cells = \d+", "radial_cells = 5", text)
     text = re.sub(r"(?m)^azimuthal_cells = \d+", "azimuthal_cells = 8", text)
     path.write_text(text)
     return path
