@@ -85,6 +85,22 @@ def test_wall_cell_yplus_against_a_hand_computation(base):
     assert yplus_b == pytest.approx(y_c * u_tau_b / nu, abs=0.05)
 
 
+def test_ring_growth_against_a_hand_computation(base):
+    # a 0.3 m pipe at Re = 1e6 on 6 rings: the 5 inner rings grow geometrically from the wall cell
+    case = base.replace(pipe={"diameter": 0.3, "length": 40.0, "sections": [35.0]}, gas={"bulk_velocity": 50.0},
+                        numerics={"radial_cells": 6, "axial_cells": 10})
+    report = check_report(case)
+    wall = next(s for s in report.splitlines() if s.startswith("  wall cell"))
+    t = float(re.search(r"ring thickness (\S+) \[mm\]", wall).group(1)) * 1e-3
+    ratio = float(re.search(r"outward (\S+) \[1\]", next(s for s in report.splitlines() if s.startswith("  rings"))).group(1))
+    lo, hi = 1.0 + 1e-9, 100.0  # t (1 + q + ... + q^4) = R - t: the rest of the radius
+    for _ in range(200):
+        q = 0.5 * (lo + hi)
+        lo, hi = (q, hi) if t * (q ** 5 - 1) / (q - 1) < 0.15 - t else (lo, q)
+    assert ratio == pytest.approx(q, rel=2e-3)
+    assert 3.5 < ratio < 4.0  # near the limit of rans.mesh.MAX_RING_GROWTH
+
+
 def test_report_lists_every_key_with_units_and_the_particle_numbers(base):
     report = check_report(base)
     for key in base.to_attrs():
