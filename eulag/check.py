@@ -36,8 +36,6 @@ from __future__ import annotations
 import math
 from dataclasses import MISSING
 
-import numpy as np
-
 from eulag.config import _SECTIONS, Case, _fmt, _public_fields
 
 __all__ = [
@@ -368,11 +366,10 @@ def check_report(case: Case) -> str:
     out.append(f"  wall cell    ring thickness {wall_ring * 1e3:.4g} [mm], centroid "
                f"{y_c * 1e3:.4g} [mm] from the wall: y+ = {y_c * ut_c / nu:.1f} [1] (Colebrook), {y_c * ut_b / nu:.1f} [1] "
                f"(Blasius); target numerics.first_cell_yplus = {n.first_cell_yplus:g} [1]")
-    from rans.mesh import MAX_RING_GROWTH
+    from rans.mesh import MAX_RING_GROWTH, radial_growth
 
-    sizes = np.diff(np.asarray(mesh.r_edges, dtype=float))
     out.append(f"  rings        {nr}; largest thickness ratio of a ring to the next one outward "
-               f"{float(np.max(sizes[:-1] / sizes[1:])):.3g} [1] (allowed: at most {MAX_RING_GROWTH:g})")
+               f"{radial_growth(0.5 * pipe.diameter, nr, wall_ring):.3g} [1] (allowed: at most {MAX_RING_GROWTH:g})")
 
     p = case.particles
     if p is not None:

@@ -30,7 +30,7 @@ import numpy as np
 from fluids.friction import Colebrook
 
 __all__ = ["MAX_RING_GROWTH", "PipeMesh", "cell_index", "locate_cell", "radial_edges", "radial_growth",
-           "ring_centre_radius"]
+           "ring_centre_radius", "rings_for_growth"]
 
 #: Largest ratio allowed between the thicknesses of neighbouring rings (``radial_growth``).  The
 #: march of a 0.3 m pipe at Re = 10^6 on 5 rings (wall cell at y+ 30, growth 6.4 per ring)
