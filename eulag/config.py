@@ -913,16 +913,12 @@ class Case:
                          f"a y+ whose wall cell fits the pipe: at Re = {re:.4g} ({given}) the wall cell "
                          f"would be {thickness:.3g} m thick in a pipe of radius {_num(0.5 * d)} m; lower "
                          "numerics.first_cell_yplus or raise the Reynolds number")
-        from rans.mesh import MAX_RING_GROWTH, radial_growth, rings_for_growth
+        from rans.mesh import ring_growth_problem
 
-        growth = radial_growth(0.5 * d, n.radial_cells, thickness)
-        if growth > MAX_RING_GROWTH:
+        problem = ring_growth_problem(0.5 * d, n.radial_cells, thickness)
+        if problem is not None:
             raise _error("numerics.radial_cells", n.radial_cells, "out of range",
-                         f"enough rings that each is at most {MAX_RING_GROWTH:g} times as thick as the "
-                         f"next one outward (here {growth:.3g}: a wall cell {thickness:.3g} m thick, its "
-                         f"centre at y+ = {_num(yplus)}, in a pipe of radius {_num(0.5 * d)} m at Re = "
-                         f"{re:.4g}): at least {rings_for_growth(0.5 * d, thickness)} radial cells, or "
-                         "raise numerics.first_cell_yplus")
+                         f"{problem} (the wall cell's centre at y+ = {_num(yplus)}, Re = {re:.4g})")
 
     # -- construction -------------------------------------------------------
 

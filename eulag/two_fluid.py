@@ -180,16 +180,13 @@ def validate_two_fluid_case(case: dict) -> None:
     if not 0.0 < thickness < 0.5 * pipe["diameter"]:
         raise ValueError(f"numerics.first_cell_yplus = {_fmt(yplus)}: allowed a y+ whose wall cell fits the pipe "
                          f"(here {thickness:.3g} m thick in a pipe of radius {0.5 * pipe['diameter']:g} m)")
-    from rans.mesh import MAX_RING_GROWTH, radial_growth, rings_for_growth
+    from rans.mesh import ring_growth_problem
 
     rings = case.get("numerics", {}).get("radial_cells", SCHEMA["numerics"]["radial_cells"][0])
-    growth = radial_growth(0.5 * pipe["diameter"], rings, thickness)
-    if growth > MAX_RING_GROWTH:
-        raise ValueError(f"numerics.radial_cells = {_fmt(rings)}: allowed enough rings that each is at most "
-                         f"{MAX_RING_GROWTH:g} times as thick as the next one outward (here {growth:.3g}, with "
-                         f"the wall ring at y+ = {_fmt(yplus)}): at least "
-                         f"{rings_for_growth(0.5 * pipe['diameter'], thickness)} radial cells, or raise "
-                         "numerics.first_cell_yplus")
+    problem = ring_growth_problem(0.5 * pipe["diameter"], rings, thickness)
+    if problem is not None:
+        raise ValueError(f"numerics.radial_cells = {_fmt(rings)}: allowed {problem} (the wall ring at y+ = "
+                         f"{_fmt(yplus)})")
     if not solids["diameter"] < 0.2 * pipe["diameter"]:
         raise ValueError(f"solids.diameter = {_fmt(solids['diameter'])}: allowed a number < pipe.diameter / 5 "
                          f"({0.2 * pipe['diameter']:g}): a continuum of particles much smaller than the pipe")

@@ -30,7 +30,7 @@ import numpy as np
 from fluids.friction import Colebrook
 
 __all__ = ["MAX_RING_GROWTH", "PipeMesh", "cell_index", "locate_cell", "radial_edges", "radial_growth",
-           "ring_centre_radius", "rings_for_growth"]
+           "ring_centre_radius", "ring_growth_problem", "rings_for_growth"]
 
 #: Largest ratio allowed between the thicknesses of neighbouring rings (``radial_growth``).  The
 #: march of a 0.3 m pipe at Re = 10^6 on 5 rings (wall cell at y+ 30, growth 6.4 per ring)
@@ -85,6 +85,17 @@ def rings_for_growth(radius, wall_thickness, limit=MAX_RING_GROWTH, most=400):
         if radial_growth(radius, n, wall_thickness) <= limit:
             return n
     return most
+
+
+def ring_growth_problem(radius, radial_cells, wall_thickness):
+    """What is wrong with ``radial_cells`` rings on this wall cell, as the "allowed" part of a
+    one-line message (None when the rings grow at most :data:`MAX_RING_GROWTH` per ring)."""
+    growth = radial_growth(radius, radial_cells, wall_thickness)
+    if growth <= MAX_RING_GROWTH:
+        return None
+    return (f"enough rings that each is at most {MAX_RING_GROWTH:g} times as thick as the next one outward "
+            f"(here {growth:.3g}, from a wall cell {wall_thickness:.3g} m thick in a pipe of radius {radius:g} m): "
+            f"at least {rings_for_growth(radius, wall_thickness)} radial cells, or raise numerics.first_cell_yplus")
 
 
 def radial_edges(radius, radial_cells, wall_thickness):
