@@ -23,11 +23,10 @@ import argparse
 import math
 import os
 import sys
-import time
 from pathlib import Path
 
 import eulag
-from eulag.config import CASES_DIR, Case, CaseError
+from eulag.config import CASES_DIR, Case
 from eulag.arguments import short_reason
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
