@@ -42,7 +42,6 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 
-import numpy as np
 from numba import njit
 
 from .conf import JIT_FLAGS, KERNEL_FLAGS

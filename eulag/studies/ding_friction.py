@@ -820,10 +820,10 @@ def _write_readme(outdir, args, rows, grid_rows, sens_rows, plan, records, figur
           "docs/two-fluid.md. Nothing is tuned to the measurements.", "",
           "The paper gives the measured Δp only at Q_s = 0.8 m³/h (4.26 kPa, Table 5); its Fig. 3 values at the other "
           "rates are not in the text (only the relative errors of all models, −4.91 % to +7.60 %).", "",
-          f"Columns: mesh = radial x azimuthal cells (the wall ring at y+ 30); deposit peak α_s = the largest α_s of "
-          f"the section; deposit area = the fraction of the section with α_s > α_min = 0.4; capped cells = cells "
-          f"whose frictional viscosity reached `friction.viscosity_cap`; solids wall force / weight = the solids "
-          f"wall shear of eq. 24 integrated over the wall, over the submerged solids weight per unit length.", "",
+          "Columns: mesh = radial x azimuthal cells (the wall ring at y+ 30); deposit peak α_s = the largest α_s of "
+          "the section; deposit area = the fraction of the section with α_s > α_min = 0.4; capped cells = cells "
+          "whose frictional viscosity reached `friction.viscosity_cap`; solids wall force / weight = the solids "
+          "wall shear of eq. 24 integrated over the wall, over the submerged solids weight per unit length.", "",
           "## Table", "", markdown_table(COLUMNS, rows), "",
           f"The same table as CSV: [{csv_path.name}]({csv_path.name}). Each run's dataset is `<run>.nc` in this "
           "folder; what the table and figures take from it is in `<run>.record.json` beside it (a failed run: "
