@@ -185,11 +185,12 @@ RESULT_CASES = {
     "stability": lambda: [(n, c) for n, _, c in studies.stability_cases(False, parcels=30000)
                           if isinstance(c, Case)],
     "tsuji-morikawa": lambda: studies.tsuji_morikawa_cases(False),
+    "scenes-ablation": lambda: [(n, c) for n, _, _, c in studies.ablation_cases(False)],
 }
 
 
 #: results/ folders whose records were run with today's defaults (the others predate them)
-TODAYS_DEFAULTS = {"scenes", "tsuji-morikawa"}
+TODAYS_DEFAULTS = {"scenes", "tsuji-morikawa", "scenes-ablation"}
 
 
 @pytest.mark.parametrize("folder", sorted(RESULT_CASES))
