@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -242,7 +243,8 @@ def test_check_of_a_slug_case_prints_the_resolved_case_and_its_numbers(capsys):
     assert f"m = {m:.4g} [kg]" in out
     ln_e = math.log(0.5)
     zeta = -ln_e / math.sqrt(math.pi ** 2 + ln_e ** 2)
-    t_c = math.pi / (math.sqrt(1000.0 / (0.5 * m)) * math.sqrt(1.0 - zeta ** 2))  # pair of reduced mass m/2
+    k_n = tomllib.loads((ROOT / "cases" / "slug" / "strauss_horizontal.toml").read_text())["grains"]["stiffness_N_m"]
+    t_c = math.pi / (math.sqrt(k_n / (0.5 * m)) * math.sqrt(1.0 - zeta ** 2))  # pair of reduced mass m/2
     assert f"t_c = {t_c:.4g} [s]" in out
     assert f"{2.49 / 3600.0 / m:.4g} [s-1]" in out
     kappa = 1.4e-3 ** 2 * 0.48 ** 3 / (180.0 * 0.52 ** 2)  # Carman-Kozeny
