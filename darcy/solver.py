@@ -26,16 +26,19 @@ Boundary conditions (``inlet``):
 - ``"source"``: the paper's form: the inlet face is closed and +S = P0 v_s A is added to the
   first layer of cells, −S to the last (SMH §2.1, "S ∝ v_g P0").
 Outlet x = L: P′ = 0 at the face.  Periodic tubes (``periodic=True``): P′ periodic plus a mean
-gradient G, the quasi-steady series resistance of the slices,
+gradient G (the pressure drop over the tube is −G L), taken quasi-steady from φ and u: the steady
+discrete field P′ = P_u + G P_G (P_u from the u terms, P_G from G, both on the periodic operator)
+carries a mixture volume flux j A through every cross-section, and G is the value for which
 
-    G = −η ⟨(j − ū_i) / κ̄_i⟩_i,   j = v_s + ⟨(1 − φ̄_i) ū_i⟩_i,
+    j A = v_s A + ⟨(1 − φ) u_x⟩ A,
 
-with κ̄_i the area-mean permeability of slice i (parallel paths), ū_i its solids-weighted grain
-velocity and j the mixture volume flux (uniform along a steady 1-D tube; its gas part averages
-to v_s); the pressure drop is −G L.  (Solving G as an extra implicit unknown with the
-constraint "mean gas flux over the x-faces = v_s" was tried: that differential-algebraic
-system has a growing mode — the constraint adds a positive rank-one term to the diffusion
-operator — so G is taken quasi-steady and explicit.)
+the superficial gas flux plus the tube-mean solids volume flux (for a 1-D tube of slices this is
+G = −η ⟨(j − ū_i)/κ_i⟩, the series resistance).  The discrete steady state then delivers v_s
+exactly.  (Solving G as an extra implicit unknown with the constraint "mean gas flux over the
+x-faces = v_s" was tried: that differential-algebraic system has a growing mode — the constraint
+adds a positive rank-one term to the diffusion operator — so G is taken quasi-steady, from φ and
+u alone.  An earlier closed form built from slice-mean permeabilities delivered about 0.987 of
+v_s in a slug.)
 
 Mass balance: :meth:`DarcySolver.balance` returns the residual of the discrete gas volume
 balance of the last step (storage = boundary fluxes + the u terms), zero to round-off.
@@ -200,17 +203,7 @@ class DarcySolver:
         p_old = self.p.ravel()
         rhs = C * p_old - (1 - th) * (M @ p_old) + rhs_src
         if g.periodic:
-            # G: quasi-steady series resistance of the slices (see module docstring), explicit
-            xa, xb, xT = fa[:nxf], fb[:nxf], T[:nxf]
-            A2 = g.area[None]
-            kbar = (kap * A2).sum(axis=(1, 2)) / g.cross_area          # parallel paths in a slice
-            sol_ = ((1.0 - phi) * A2).sum(axis=(1, 2)) / g.cross_area
-            ubar = (u[..., 0] * (1.0 - phi) * A2).sum(axis=(1, 2)) / np.maximum((1.0 - phi) * A2, 1e-300).sum(axis=(1, 2))
-            j = v_s + np.mean(sol_ * ubar)                                # mixture volume flux
-            G = -self.eta * np.mean((j - ubar) / kbar)
-            gcol = np.zeros(n)
-            np.add.at(gcol, xa, xT * g.lx)
-            np.add.at(gcol, xb, -xT * g.lx)
+            G, gcol = self._periodic_gradient(M, fa, fb, T, U, nxf, phi, u, v_s)
             rhs = rhs + gcol * G
             rhs_src = rhs_src + gcol * G
             K = (sp.diags(C) + th * M).tocsc()
@@ -225,6 +218,37 @@ class DarcySolver:
         self.p = p_new.reshape(g.shape)
         self.G = float(G)
         return self.p
+
+    def _periodic_gradient(self, M, fa, fb, T, U, nxf, phi, u, v_s):
+        """(G, gcol): the mean gradient G [Pa/m] of a periodic tube and its column in the cell
+        equations (M P′ = sources + gcol G).
+
+        G is quasi-steady: P′ = P_u + G P_G solves the steady discrete equations, M P_u = the
+        −P0 ∇·u terms and M P_G = gcol (M singular on the periodic tube: a bordered system fixes
+        the mean of P′), and G is the one value for which the mixture volume flux through the
+        x-faces of that steady field, the same through every cross-section, equals
+        v_s A + Σ (1 − φ) u_x V / L, the superficial gas flux plus the tube-mean solids flux.
+        So the discrete steady state delivers v_s exactly; G depends on φ and u only, not on P′."""
+        g = self.grid
+        n = phi.size
+        xa, xb, xT = fa[:nxf], fb[:nxf], T[:nxf]
+        gcol = np.zeros(n)
+        np.add.at(gcol, xa, xT * g.lx)
+        np.add.at(gcol, xb, -xT * g.lx)
+        src_u = np.zeros(n)
+        np.add.at(src_u, fa, -self.p0 * U)
+        np.add.at(src_u, fb, self.p0 * U)
+        ones = sp.csr_matrix(np.ones((n, 1)))
+        bordered = sp.bmat([[M, ones], [ones.T, None]], format="csc")
+        lu = spla.splu(bordered)
+        p_u = lu.solve(np.append(src_u, 0.0))[:n]
+        p_g = lu.solve(np.append(gcol, 0.0))[:n]
+        # mixture volume flux [m³/s] summed over the x-faces (nx cross-sections): Darcy part + u part
+        j_u = np.sum(xT * (p_u[xa] - p_u[xb])) / self.p0 + np.sum(U[:nxf])
+        j_g = np.sum(xT * (p_g[xa] - p_g[xb] - g.lx)) / self.p0
+        solids = np.sum((1.0 - phi) * u[..., 0] * g.area[None])            # Σ (1 − φ) u_x A, all slices
+        wanted = g.nx * v_s * g.cross_area + solids
+        return (wanted - j_u) / j_g, gcol
 
     # ------------------------------------------------------------------ diagnostics
     def balance(self):

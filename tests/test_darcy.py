@@ -122,3 +122,26 @@ def test_the_tube_grid_takes_any_number_of_cells_across(ny):
     g = TubeGrid(0.1, 7e-3, 5, ny)
     assert g.area.shape == (ny, ny)
     assert g.cross_area == pytest.approx(math.pi * 3.5e-3 ** 2, rel=2e-3)
+
+
+def test_periodic_tube_delivers_the_superficial_gas_velocity_through_a_slug():
+    """A frozen slug-like packing with porosity and grain velocity varying along and across a
+    periodic tube: at the steady state the gas volume flux, the mixture flux through the x-faces
+    less the tube-mean solids flux Σ (1 − φ) u_x A, is v_s A in the mean over the cross-sections.
+    (The former closed form of G from slice-mean permeabilities gave a gradient 2.4 % too small
+    here.)"""
+    g = TubeGrid(0.07, DT, 20, 2, periodic=True)
+    rng = np.random.default_rng(5)
+    phi = (0.9 - 0.42 * np.exp(-(((g.x - 0.035) / 0.012) ** 2)))[:, None, None] + rng.uniform(-0.03, 0.03, g.shape)
+    u = np.zeros(g.shape + (3,))
+    u[..., 0] = np.where(phi < 0.7, 0.4, 0.1) + rng.uniform(0.0, 0.05, g.shape)
+    u[..., 1:] = rng.normal(scale=0.02, size=g.shape + (2,))
+    v_s = 1.0
+    s = _steady(DarcySolver(g, P0, ETA, D, theta=1.0), phi, u, v_s, steps=40, dt=1e-3)
+    fa, fb, T, U, _, nxf = s._faces(phi, u)
+    p = s.p.ravel()
+    mixture = T[:nxf] * (p[fa[:nxf]] - p[fb[:nxf]] - g.lx * s.G) / P0 + U[:nxf]
+    per_section = mixture.reshape(g.nx, -1).sum(axis=1)
+    assert np.allclose(per_section, per_section[0], rtol=1e-9)  # steady: the same through every section
+    gas = (per_section.sum() - np.sum((1.0 - phi) * u[..., 0] * g.area[None])) / (g.nx * g.cross_area)
+    assert gas == pytest.approx(v_s, rel=1e-10)
