@@ -27,8 +27,10 @@ volume.  Two treatments (``weights``):
   (0.546 for a packing at 0.520) and the Carman–Kozeny resistance per grain 0.82–0.86 of its
   value at the true porosity (results/strauss-filled/grain-weights/porosity_check.py).
 
-The x-extent of every node is the full tent (l_x): the feed zone x < 0 holds grains, the
-outlet node's half-tent beyond L is empty as the tube is there.
+Along x the feed zone x < 0 holds grains, so the inlet node's tent is full; beyond the outlet
+(x ≥ L) the grains are gone, so the outlet node's volume is the part of its tent inside the
+tube, V_j · (1 − 1/8) (its tent reaches l_x/2 beyond L and holds 1/8 of its integral there): a
+uniform packing up to the outlet gives its true porosity at the outlet node too (test).
 
 Grain values (eq. 9): φ_i = Σ_j φ_j F / Σ_j F and ∇P_i likewise — normalised by the weights,
 which do not sum to one near the wall or the tube ends (the same for either treatment: the
@@ -53,6 +55,8 @@ from .engine import GONE
 WEIGHTS = ("grain", "tent")
 #: Node → grain interpolation (module docstring): normalised by the weights, or eq. 9's plain sum.
 INTERPOLATIONS = ("normalised", "printed")
+#: The part of the outlet node's tent (centre l_x/2 before the outlet, half-width l_x) inside the tube.
+OUTLET_TENT_FRACTION = 1.0 - 0.125
 
 
 def cross_section_tent_integrals(ny, tube_r, grain_r, samples=1600, weights="grain"):
@@ -245,7 +249,10 @@ class TentTransfer:
         self.periodic = bool(periodic)
         self.weights = weights
         self.v_grain = 4.0 / 3.0 * math.pi * grain_r ** 3
-        self.vol = node_volumes(nx, ny, length, tube_r, grain_r, weights=weights)
+        self.vol = np.broadcast_to(node_volumes(nx, ny, length, tube_r, grain_r, weights=weights),
+                                   (nx, ny, ny)).copy()
+        if not self.periodic:  # the outlet node's tent inside the tube (module docstring)
+            self.vol[-1] *= OUTLET_TENT_FRACTION
         self.bin_start = np.zeros(nx + 3, dtype=np.int64)
         self.sum_f = np.zeros((nx, ny, ny))
         self.sum_fv = np.zeros((nx, ny, ny, 3))
@@ -256,7 +263,7 @@ class TentTransfer:
         bin_grains(pos, status, self.lx, self.nx, self.periodic, self.length, self.bin_start, items)
         (grains_to_nodes if self.parallel else grains_to_nodes_serial)(pos, vel, self.bin_start, items, self.lx, self.nx, self.ny, self.tube_r, self.periodic,
                         self.length, self.sum_f, self.sum_fv, self.weights == "grain")
-        phi = 1.0 - self.v_grain * self.sum_f / self.vol[None, :, :]
+        phi = 1.0 - self.v_grain * self.sum_f / self.vol
         u = np.zeros_like(self.sum_fv)
         ok = self.sum_f > 0
         u[ok] = self.sum_fv[ok] / self.sum_f[ok][:, None]

@@ -18,7 +18,7 @@ import numpy as np
 import xarray as xr
 import pytest
 
-from dem import FREE, TentTransfer
+from dem import FEED, FREE, TentTransfer
 from eulag import slug
 from tests.slug_support import killed_after_checkpoint
 
@@ -46,6 +46,24 @@ def test_uniform_packing_gives_uniform_porosity(ny):
     assert np.allclose(1 - phi, true_solid, rtol=0.025)
     assert abs((1 - phi).mean() / true_solid - 1) < 0.005
     assert np.allclose(u, [0.3, -0.1, 0.05], rtol=1e-12)
+
+
+def test_uniform_packing_up_to_the_outlet_gives_uniform_porosity_at_the_end_nodes():
+    """An open tube: a uniform packing from the feed zone (x < 0, FEED grains) up to the outlet
+    (grains beyond L are gone) gives its true solids fraction at the inlet and the outlet node
+    too; the outlet node's volume is the part of its tent inside the tube (it read 0.875 of the
+    solids with the full tent)."""
+    rng = np.random.default_rng(13)
+    length, n = 0.07, 2_000_000
+    tr = TentTransfer(20, 2, length, RT, R)
+    pos = _uniform_centres(n, length + tr.lx, rng)
+    pos[:, 0] -= tr.lx  # x in [−l_x, L): the feed zone holds the packing's continuation
+    status = np.where(pos[:, 0] < 0.0, FEED, FREE).astype(np.int8)
+    phi, _ = tr.porosity_velocity(pos, np.zeros((n, 3)), status)
+    true_solid = n * (4 / 3 * math.pi * R**3) / (math.pi * RT**2 * (length + tr.lx))
+    ratio = (1 - phi) / true_solid
+    assert np.allclose(ratio, 1, rtol=0.02)  # ~25,000 centres per node
+    assert abs(ratio[-1].mean() - 1) < 0.01 and abs(ratio[0].mean() - 1) < 0.01
 
 
 def _wall_centres(n, length, rng):
