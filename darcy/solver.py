@@ -224,8 +224,7 @@ class DarcySolver:
         equations (M P′ = sources + gcol G).
 
         G is quasi-steady: P′ = P_u + G P_G solves the steady discrete equations, M P_u = the
-        −P0 ∇·u terms and M P_G = gcol (M singular on the periodic tube: a bordered system fixes
-        the mean of P′), and G is the one value for which the mixture volume flux through the
+        −P0 ∇·u terms and M P_G = gcol (M singular on the periodic tube: one cell's P′ is pinned), and G is the one value for which the mixture volume flux through the
         x-faces of that steady field, the same through every cross-section, equals
         v_s A + Σ (1 − φ) u_x V / L, the superficial gas flux plus the tube-mean solids flux.
         So the discrete steady state delivers v_s exactly; G depends on φ and u only, not on P′."""
@@ -238,11 +237,11 @@ class DarcySolver:
         src_u = np.zeros(n)
         np.add.at(src_u, fa, -self.p0 * U)
         np.add.at(src_u, fb, self.p0 * U)
-        ones = sp.csr_matrix(np.ones((n, 1)))
-        bordered = sp.bmat([[M, ones], [ones.T, None]], format="csc")
-        lu = spla.splu(bordered)
-        p_u = lu.solve(np.append(src_u, 0.0))[:n]
-        p_g = lu.solve(np.append(gcol, 0.0))[:n]
+        # P′ is fixed up to a constant: pin the first cell at 0 and solve for the others (both
+        # right-hand sides sum to zero, so the first cell's equation holds too)
+        lu = spla.splu(M[1:, 1:].tocsc())
+        p_u = np.concatenate(([0.0], lu.solve(src_u[1:])))
+        p_g = np.concatenate(([0.0], lu.solve(gcol[1:])))
         # mixture volume flux [m³/s] summed over the x-faces (nx cross-sections): Darcy part + u part
         j_u = np.sum(xT * (p_u[xa] - p_u[xb])) / self.p0 + np.sum(U[:nxf])
         j_g = np.sum(xT * (p_g[xa] - p_g[xb] - g.lx)) / self.p0

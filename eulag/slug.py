@@ -103,6 +103,9 @@ _INTS = {("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "st
 END_TIME_MAX_S = 1e5
 #: Largest values of the integers (numerics.seed: any int64 >= 0; the others at most 10⁷): the gas
 #: grid of the paper has 150 x 2 x 2 nodes.
+#: The most gas cells across the tube for which every cell of the square grid holds part of the
+#: circle: the corner cell's inner corner, at √2 R (1 − 2/n) from the axis, lies inside for n < 6.83.
+MAX_CELLS_ACROSS = 6
 _INT_MAX = {"cells_x": 100_000, "cells_across": 64}
 _INT_MIN = {"cells_x": 3}
 _BOOLS = {("tube", "periodic"), ("numerics", "parallel")}
@@ -292,6 +295,15 @@ def validate_slug_case(case: dict) -> dict:
     if t["periodic"] and t["length_m"] < shortest:
         raise _bad("tube", "length_m", t["length_m"], f">= {shortest:.4g} m for a periodic tube (3 (1 + {SKIN}) "
                    f"grain diameters)")
+    if n["cells_across"] > MAX_CELLS_ACROSS:
+        raise _bad("numerics", "cells_across", n["cells_across"],
+                   f"<= {MAX_CELLS_ACROSS} (with more cells across, the corner cells of the square grid lie "
+                   f"wholly outside the circular tube)")
+    lx = t["length_m"] / n["cells_x"]
+    if not t["periodic"] and out["feed"]["block_length_m"] < 0.5 * lx:
+        raise _bad("feed", "block_length_m", out["feed"]["block_length_m"],
+                   f">= half a gas cell, tube.length_m / (2 numerics.cells_x) = {0.5 * lx:.4g} m (the feed "
+                   f"zone before the inlet must fill the inlet node's tent)")
     across = t["diameter_m"] / (CELL_GRAINS * gr["diameter_m"])
     if n["cells_across"] > max(1.0, across):
         raise _bad("numerics", "cells_across", n["cells_across"],

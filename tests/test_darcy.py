@@ -145,3 +145,14 @@ def test_periodic_tube_delivers_the_superficial_gas_velocity_through_a_slug():
     assert np.allclose(per_section, per_section[0], rtol=1e-9)  # steady: the same through every section
     gas = (per_section.sum() - np.sum((1.0 - phi) * u[..., 0] * g.area[None])) / (g.nx * g.cross_area)
     assert gas == pytest.approx(v_s, rel=1e-10)
+
+
+def test_periodic_gradient_of_a_moving_uniform_packing():
+    """Grains moving at u through a uniform packing: the Darcy flux is q = φ(v_g − u) = v_s − φ u,
+    so G = −η (v_s − φ u)/κ (Darcy's law)."""
+    g = TubeGrid(0.07, DT, 20, 2, periodic=True)
+    phi = np.full(g.shape, 0.45)
+    u = np.zeros(g.shape + (3,))
+    u[..., 0] = 0.3
+    s = _steady(DarcySolver(g, P0, ETA, D, theta=1.0), phi, u, 0.8, steps=5, dt=1e-3)
+    assert s.G == pytest.approx(-ETA * (0.8 - 0.45 * 0.3) / carman_kozeny(0.45, D), rel=1e-9)

@@ -162,6 +162,9 @@ def test_packaged_cases_validate(name):
     # with 3 gas cells across the 7 mm tube the porosity fell below 0.2 and Delta p halved; 4: clipped throughout
     ("numerics", "cells_across", 3, "numerics.cells_across = 3: allowed <= tube.diameter_m / (2.5 grains.diameter_m) = 2"),
     ("numerics", "cells_x", 2, "numerics.cells_x = 2: allowed an integer >= 3"),
+    ("numerics", "cells_across", 7, "numerics.cells_across = 7: allowed <= 6 (with more cells across, the corner"),
+    # 10 cells of 52.5 mm: the 14 mm feed blocks do not fill the inlet node's tent before the inlet
+    ("numerics", "cells_x", 10, "feed.block_length_m = 0.014: allowed >= half a gas cell"),
     ("numerics", "steps_per_contact", 2, "numerics.steps_per_contact = 2: allowed a number of DEM steps per contact at "
      "which the default grains.tangential_damping_ratio"),
     ("initial", "plug_length_m", 0.05, "initial.plug_length_m = 0.05: allowed 0.0 (not set) for a tube that is not "
