@@ -56,30 +56,33 @@ G = 9.80665
 SALTATION_MARGIN = 1.2
 
 # -- run-time model constants -----------------------------------------------------------
-# Measured with eulag 0.1.0 on a machine of 2 cores (shared), the base case
-# cases/tsuji_morikawa_200um.toml (200 x 10 x 20 cells, 30,000 parcels, four-way) run for
-# 4 passes: gas solves 0.76-0.79 s per pass (0.77 s the initial single-phase solve), the
-# final pass 36,748,755 particle steps of 30,000 parcels (1,225 per parcel, mean residence
-# time 0.414 s) in 24.5 s; the Lagrangian passes took 14.9-27.9 s, the spread being the
-# machine's load.
+# Measured on the 2-core VM, idle, with the runs of results/speed (python
+# tests/benchmarks/bench_speed.py): the base case cases/tsuji_morikawa_200um.toml (200 x 10 x 20
+# cells, 30,000 parcels, four-way) converged in 36 passes, 206 s: gas 30 s over 37 solves
+# (0.81 s each), particles 172 s for 36 x 30,000 parcels (1.59e-4 s per parcel, about 1,225
+# steps each at L/U0 = 0.4 s). The same case on 200 x 20 x 40 cells (`--only paper`; 30,000 ->
+# 240,000 parcels): 1.80e-4 s per parcel; scenes a and e on 400 x 20 x 40: 2.43e-4 and 2.47e-4.
+# The same VM type on another host ran the particle kernel 1.5 times slower.
 #: gas-solver wall time per cell and coupling pass [s] (developing mode)
-GAS_SECONDS_PER_CELL = 0.77 / 40000
+GAS_SECONDS_PER_CELL = 0.81 / 40000
 #: wall time per cell of a single-phase run's gas solve [s]: cases/single_phase_pipe.toml
 #: (400 x 20 x 40 cells, developing, converged to 1e-6) in 2.30 s on the same machine
 SINGLE_PHASE_SECONDS_PER_CELL = 2.30 / 320000
-#: particle steps per second of wall time, whole machine [1/s]
-PARTICLE_STEPS_PER_SECOND = 36_748_755 / 24.5
-#: particle steps per parcel of the measurement [1], at its L/U0 = 0.4 s, step factor 0.5 and
-#: 10 rings
-STEPS_PER_PARCEL_MEASURED = 36_748_755 / 30_000
-_MEASURED_TRANSIT, _MEASURED_STEP_FACTOR, _MEASURED_RINGS = 4.0 / 10.0, 0.5, 10
-#: growth of the steps per parcel with mesh refinement, steps ~ (nr / 10)^0.85: the
-#: error-against-run-time study (results/error-runtime) took 1.8x the Lagrangian time per
-#: parcel on 400 x 20 x 40 cells as on 200 x 10 x 20 (2^0.85 = 1.8)
-REFINEMENT_EXPONENT = 0.85
-#: coupling passes of a typical converged run [1]: the error-against-run-time study's runs
-#: converged in 19-21 passes, the base case in about 17
-TYPICAL_PASSES = 20
+#: particle steps per parcel of the measurement [1], at its L/U0 = 0.4 s, step factor 0.5,
+#: 10 rings and 50 axial cells per metre
+STEPS_PER_PARCEL_MEASURED = 1225
+_MEASURED_TRANSIT, _MEASURED_STEP_FACTOR, _MEASURED_RINGS, _MEASURED_AXIAL_DENSITY = 0.4, 0.5, 10, 50.0
+#: particle steps per second of wall time, whole machine (two threads) [1/s]
+PARTICLE_STEPS_PER_SECOND = STEPS_PER_PARCEL_MEASURED / (172.0 / (36 * 30000))
+#: growth of the cost per parcel with the rings, ~ (nr / 10)^0.18 (1.80/1.59 from 10 to 20
+#: rings), and with the axial cells per metre, ~ (n_x / L / 50)^0.45 (2.45/1.80 from 50 to 100)
+REFINEMENT_EXPONENT, AXIAL_REFINEMENT_EXPONENT = 0.18, 0.45
+#: coupling passes of a typical converged run [1]: the base case 36 (converged after 33), the
+#: 200 um scenes 17-40, the 50 um ones 27-34 (scene h about 70)
+TYPICAL_PASSES = 36
+#: compilation of the numba kernels on a cold cache [s] (not in the estimates): about 15 s for
+#: a single-phase run, 1-3 min for the particle kernels of one physics-option set
+COLD_COMPILE_TEXT = "plus the compilation of the numba kernels on a cold cache (15 s to 3 min, once)"
 
 
 def _unit(meta: dict, value) -> str:
@@ -286,13 +289,15 @@ def runtime_estimate(case: Case) -> tuple[float, float, str]:
 
     Model: each pass costs a gas solve, GAS_SECONDS_PER_CELL x cells, and a Lagrangian pass,
     parcels x steps per parcel / PARTICLE_STEPS_PER_SECOND, with steps per parcel =
-    STEPS_PER_PARCEL_MEASURED x (L/U0) / 0.4 s x 0.5 / step_factor x (nr / 10)^0.85. A coupled
+    STEPS_PER_PARCEL_MEASURED x (L/U0) / 0.4 s x 0.5 / step_factor x (nr / 10)^0.18 x
+    (n_x / L / 50 m⁻¹)^0.45 (nx = 1 for a periodic pipe). A coupled
     run: one single-phase solve, then TYPICAL_PASSES passes (at most max_passes), the last
     average_passes of them with numerics.parcels and the others with numerics.parcels_start;
     one-way coupling: one gas solve and the average_passes passes. Single-phase: one gas solve
     at SINGLE_PHASE_SECONDS_PER_CELL.
-    Good to a factor of about 1.5 (the Lagrangian rate alone varied 1.9x with the machine's
-    load in the measurement); finer meshes, heavier loadings and rough walls cost more steps.
+    Good to a factor of about 1.5 on an idle 2-core machine for dilute 200 um cases; the dense
+    50 um scenes take more steps per parcel (their collisions shorten the step) and more passes,
+    and a loaded machine is slower. Compilation on a cold numba cache is not included.
     """
     n = case.numerics
     nx = 1 if case.pipe.mode == "periodic" else n.axial_cells
@@ -305,7 +310,8 @@ def runtime_estimate(case: Case) -> tuple[float, float, str]:
     gas = GAS_SECONDS_PER_CELL * cells
     transit = case.pipe.length / case.gas.bulk_velocity
     steps = (STEPS_PER_PARCEL_MEASURED * transit / _MEASURED_TRANSIT * _MEASURED_STEP_FACTOR
-             / n.step_factor * (n.radial_cells / _MEASURED_RINGS) ** REFINEMENT_EXPONENT)
+             / n.step_factor * (n.radial_cells / _MEASURED_RINGS) ** REFINEMENT_EXPONENT
+             * (nx / case.pipe.length / _MEASURED_AXIAL_DENSITY) ** AXIAL_REFINEMENT_EXPONENT)
     per_parcel = steps / PARTICLE_STEPS_PER_SECOND
 
     def total(passes):
@@ -406,8 +412,8 @@ def check_report(case: Case) -> str:
                        f"pass ({n.average_passes} [1] final passes averaged), at most "
                        f"{n.max_passes} [1] passes")
     if typical == worst:
-        out.append(f"  run time     about {_minutes(typical)} ({typical:.3g} [s]): {basis}")
+        out.append(f"  run time     about {_minutes(typical)} ({typical:.3g} [s]): {basis}; {COLD_COMPILE_TEXT}")
     else:
         out.append(f"  run time     about {_minutes(typical)} ({typical:.3g} [s]), up to "
-                   f"{_minutes(worst)} ({worst:.3g} [s]): {basis}")
+                   f"{_minutes(worst)} ({worst:.3g} [s]): {basis}; {COLD_COMPILE_TEXT}")
     return "\n".join(out)

@@ -111,7 +111,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sweep = sub.add_parser("sweep", help="run several cases, each writing <name>.nc, with a summary table; "
                                          "resumable")
-    sweep.add_argument("cases", nargs="+", metavar="CASE.toml", help="case files (distinct case names)")
+    sweep.add_argument("cases", nargs="+", metavar="CASE.toml|NAME",
+                       help="case files or packaged case names (distinct case names)")
     sweep.add_argument("-o", "--output-dir", metavar="DIR", default=".",
                        help="directory of the datasets, checkpoints and sweep_summary.csv/.md "
                             "(default: the current directory; created if missing)")

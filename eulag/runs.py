@@ -113,9 +113,13 @@ def case_path(spec: str | Path) -> Path:
         raise BadInput(f"case = {type(spec).__name__}: wrong type; allowed: an eulag.Case, a case file path "
                        "or a packaged case's name (eulag cases)")
     p = Path(spec)
-    if p.is_file() or p.suffix == ".toml" or p.parent != Path("."):
+    if p.is_file():
         return p
     known = packaged_cases()
+    if p.is_dir() and str(spec) not in known:
+        raise BadInput(f"{spec}: is a directory; allowed: a case file (.toml) or a packaged case's name (eulag cases)")
+    if p.suffix == ".toml" or p.parent != Path("."):
+        return p
     if str(spec) in known:
         return known[str(spec)]
     raise BadInput(f"{spec}: no such case file or packaged case; allowed: a .toml path or one of "

@@ -59,6 +59,18 @@ def test_packaged_cases_load_by_name():
         runs.load_case("no_such_case_name")
 
 
+def test_a_directory_given_as_the_case_is_named_so(tmp_path, monkeypatch):
+    from eulag import runs
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "adir").mkdir()
+    for spec in ("adir", tmp_path / "adir"):
+        with pytest.raises(runs.BadInput, match=r"adir: is a directory; allowed: a case file \(.toml\)"):
+            runs.load_case(spec)
+    (tmp_path / "scene_a").mkdir()  # a folder named like a packaged case does not hide it
+    assert runs.load_case("scene_a").name == "scene_a"
+
+
 def test_unknown_model_is_bad_input(tmp_path):
     from eulag import runs
 

@@ -46,7 +46,7 @@ import numpy as np
 from eulag.config import CASES_DIR
 
 from .report import Column, _figure, draw_figures, machine_info, markdown_table, write_csv
-from .runner import RunRecord, _BadInput, _finish, _log, run_case
+from .runner import RunRecord, _BadInput, _finish, _log, refuse_report_of_nothing, run_case
 
 STUDY = "ding-friction"
 MODELS = ("dartevelle", "srivastava-sundaresan", "berzi")
@@ -321,6 +321,7 @@ def study_ding_friction(args, outdir: Path, t_start: float) -> int:
     for i, (name, (kind, info, case)) in enumerate(plan.items(), 1):
         label = f"[{STUDY} {i}/{len(plan)}] {name}"
         records[name] = run_case(args, name, case, outdir, label, _extractor(args, label, case))
+    refuse_report_of_nothing(args, records.values(), outdir)
     rows = [_row(info, case, records[name]) for name, (kind, info, case) in plan.items() if kind == "matrix"]
     grid_rows = _grid_rows(plan, records)
     sens_rows = _sensitivity_rows(plan, records)

@@ -15,7 +15,7 @@ from eulag.config import Case, CaseError
 
 from .profiles import diameter_profile, pareto_front, profile_deviation, read_measurements
 from .report import Column, _figure, _run_cells, _settings_text, _station, write_report
-from .runner import QUICK_NUMERICS, _BadInput, _base_case, _finish, run_case
+from .runner import QUICK_NUMERICS, _BadInput, _base_case, _finish, refuse_report_of_nothing, run_case
 
 
 @dataclass
@@ -138,6 +138,7 @@ def study_error_runtime(args, outdir: Path, t_start: float) -> int:
         if "profiles" in records[s.name].metrics:
             profiles[s.name] = records[s.name].metrics["profiles"]
 
+    refuse_report_of_nothing(args, records.values(), outdir)
     refp = profiles.get(ref.name)
     rows = []
     for s in settings:

@@ -22,7 +22,7 @@ import eulag
 from eulag.analysis import attr as _attr
 from eulag.config import Case, _public_fields
 
-from .runner import QUICK_NUMERICS, STABILITY_QUICK, RunRecord
+from .runner import QUICK_NUMERICS, STABILITY_QUICK, RunRecord, refuse_report_of_nothing
 
 
 def machine_info() -> dict[str, Any]:
@@ -173,6 +173,8 @@ def write_report(outdir: Path, study: str, args, *, title: str, intro: list[str]
                  records: list[RunRecord] = ()) -> Path:
     """README.md of a study folder (generated) and the CSV of its table."""
     from eulag.output import atomic_write
+
+    refuse_report_of_nothing(args, records, outdir)
 
     csv_path = write_csv(outdir / f"{study}.csv", columns, rows)
     m = machine_info()

@@ -77,6 +77,10 @@ def _check_report_settings(args, out: Path) -> None:
         tokens = shlex.split(command)
     except ValueError:
         tokens = command.split()
+    written_by = tokens[2] if len(tokens) > 2 else None
+    if written_by is not None and written_by != args.study_name:
+        raise _BadInput(f"--report: {out} holds the study `{command}`, not {args.study_name}; its README and "
+                        f"tables are left as they are; allowed: -o a folder of {args.study_name}'s runs")
     before, now = {}, {}
     for flag, attr, kind in _CASE_OPTIONS:
         value = getattr(args, attr, None)
@@ -130,6 +134,16 @@ def _output_dir(args, made: list | None = None) -> Path:
     if not os.access(out, os.W_OK):
         raise _BadInput(f"-o {out}: directory is not writable")
     return out
+
+
+def refuse_report_of_nothing(args, records, out: Path) -> None:
+    """--report where none of the study's runs is (every row "not run": the folder holds other
+    runs, e.g. another study's): bad input, before any table or figure is written."""
+    records = list(records)
+    if getattr(args, "report", False) and records and all(r.status == "not run" for r in records):
+        raise _BadInput(f"--report: {out} holds none of the runs of eulag study {args.study_name} (no dataset, "
+                        "record or checkpoint of its cases); its README and tables are left as they are; allowed: "
+                        "a folder with this study's runs, or --resume to run them")
 
 
 def _select(only: str | None, names: list[str], what: str) -> list[str]:

@@ -15,7 +15,7 @@ from eulag.config import Case, CaseError
 
 from .report import (COLLISION_MOMENTUM_TEXT, Column, _figure, _settings_text, write_report)
 from .runner import (STABILITY_QUICK, _attr_float, _base_case, _finish, _quick, _select, _with_parcels,
-                     run_case)
+                     refuse_report_of_nothing, run_case)
 
 
 def _reynolds_velocity(case: Case, diameter: float, re: float) -> float:
@@ -147,6 +147,7 @@ def study_stability(args, outdir: Path, t_start: float) -> int:
                        lambda ds, rec, name=name: {**_field_health(ds),
                                                    **(_tracer_ratios(ds) if name == "tracers_1um" else {})})
         records.append(rec)
+    refuse_report_of_nothing(args, records, outdir)
     rows = []
     for (name, what, case), rec in zip(specs, records):
         m = rec.metrics

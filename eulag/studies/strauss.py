@@ -77,7 +77,7 @@ import numpy as np
 from eulag.config import CASES_DIR
 
 from .report import Column, _figure, draw_figures, machine_info, markdown_table, study_command, write_csv
-from .runner import RunRecord, _BadInput, _finish, _log, _select, run_case
+from .runner import RunRecord, _BadInput, _finish, _log, _select, refuse_report_of_nothing, run_case
 
 STUDY = "strauss"
 CASE_DIR = CASES_DIR / "slug"
@@ -413,6 +413,7 @@ def study_strauss(args, outdir: Path, t_start: float) -> int:
         label = f"[{STUDY} {i}/{len(plan)}] {name}"
         spacetime = bool({"default", "vertical", "long"} & set(grp))
         records[name] = run_case(args, name, case, outdir, label, _extractor(args, label, case, outdir, name, spacetime))
+    refuse_report_of_nothing(args, records.values(), outdir)
     rows = [_row(name, grp, info, records[name]) for name, (grp, info, case) in plan.items()]
     figures = _figures(outdir, plan, records)
     _write_readme(outdir, args, rows, plan, records, figures, t_start)
