@@ -453,7 +453,8 @@ def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
     existing output must hold this case (:func:`dataset_state`: BadInput for another case, naming
     the keys that differ, or for a file that is not a dataset), and an existing checkpoint must be
     one this case can continue (BadInput naming it otherwise); without ``resume``, the checkpoint
-    of an earlier run is removed, and ``notify`` says so.  Then the
+    of an earlier run is removed, and ``notify`` says so, as it says when the output it will
+    replace holds another case's dataset.  Then the
     temporary files of a write that a kill interrupted (``eulag.files.atomic_write``:
     ``.<out name>.<8 characters>.tmp``, the checkpoint's too) are removed."""
     single_phase = isinstance(case, Case) and case.particles is None
@@ -472,10 +473,17 @@ def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
             problem = state[2].removeprefix(f"{ckpt}: ")
             raise BadInput(f"--resume: {ckpt}: {problem}; allowed: a checkpoint of this case (remove it, "
                            "or run without --resume to start afresh)")
-    elif ckpt is not None and ckpt.exists():
-        ckpt.unlink()
-        if notify is not None:
-            notify(f"{ckpt}: the checkpoint of an earlier run was removed (--resume continues one)")
+    else:
+        if out.is_file() and notify is not None:
+            try:
+                dataset_state(out, case)
+            except BadInput as exc:  # another case's dataset, or not a dataset: say that it goes
+                why = str(exc).removeprefix("--resume: ").split("; allowed")[0]
+                notify(f"{why}; this run replaces it when it ends")
+        if ckpt is not None and ckpt.exists():
+            ckpt.unlink()
+            if notify is not None:
+                notify(f"{ckpt}: the checkpoint of an earlier run was removed (--resume continues one)")
     # atomic_write's temporaries of the output and its checkpoint: ".<name>.<8 random>.tmp"
     import re
 

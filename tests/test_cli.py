@@ -506,6 +506,10 @@ def test_resume_refuses_another_cases_output_and_unusable_checkpoints(tmp_path, 
     status, out, err = run_cli(capsys, "run", "a.toml", "-o", "a.nc", "--resume", "--no-plots")
     assert status == 1 and "already a finished run" in out and "converged = false" in err, (out, err)
     assert (tmp_path / "a.nc").stat().st_mtime_ns == before and not ckpt.exists()
+    # without --resume another case's output is replaced, and the run says so before it starts
+    status, out, err = run_cli(capsys, "run", "b.toml", "-o", "a.nc", "--no-plots")
+    assert "a.nc holds a different case (kinetic.restitution = 0.7 stored, 0.8 in this case); this run " \
+           "replaces it when it ends" in err, err
 
 
 def test_resume_continues_this_cases_checkpoint_beside_another_runs_output(tmp_path, monkeypatch, capsys):
