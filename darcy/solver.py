@@ -224,7 +224,8 @@ class DarcySolver:
         equations (M P′ = sources + gcol G).
 
         G is quasi-steady: P′ = P_u + G P_G solves the steady discrete equations, M P_u = the
-        −P0 ∇·u terms and M P_G = gcol (M singular on the periodic tube: one cell's P′ is pinned), and G is the one value for which the mixture volume flux through the
+        −P0 ∇·u terms and M P_G = gcol (M is singular on the periodic tube: one cell's P′ is
+        pinned), and G is the one value for which the mixture volume flux through the
         x-faces of that steady field, the same through every cross-section, equals
         v_s A + Σ (1 − φ) u_x V / L, the superficial gas flux plus the tube-mean solids flux.
         So the discrete steady state delivers v_s exactly; G depends on φ and u only, not on P′."""

@@ -103,12 +103,12 @@ _INTS = {("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "st
 END_TIME_MAX_S = 1e5
 #: Largest values of the integers (numerics.seed: any int64 >= 0; the others at most 10⁷): the gas
 #: grid of the paper has 150 x 2 x 2 nodes.
-#: The most gas cells across the tube for which every cell of the square grid holds part of the
-#: circle: the corner cell's inner corner, at √2 R (1 − 2/n) from the axis, lies inside for n < 6.83.
-MAX_CELLS_ACROSS = 6
 _INT_MAX = {"cells_x": 100_000, "cells_across": 64}
 _INT_MIN = {"cells_x": 3}
 _BOOLS = {("tube", "periodic"), ("numerics", "parallel")}
+#: The most gas cells across the tube for which every cell of the square grid holds part of the
+#: circle: the corner cell's inner corner, at √2 R (1 − 2/n) from the axis, lies inside for n < 6.83.
+MAX_CELLS_ACROSS = 6
 _STRINGS = {("initial", "state")}
 # (low, high, low inclusive?) for the numbers
 _RANGES = {
