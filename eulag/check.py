@@ -59,8 +59,8 @@ SALTATION_MARGIN = 1.2
 # Measured on the 2-core VM, idle, with the runs of results/speed (python
 # tests/benchmarks/bench_speed.py): the base case cases/tsuji_morikawa_200um.toml (200 x 10 x 20
 # cells, 30,000 parcels, four-way) converged in 36 passes, 206 s: gas 30 s over 37 solves
-# (0.81 s each), particles 172 s for 36 x 30,000 parcels (1.59e-4 s per parcel, about 1,225
-# steps each at L/U0 = 0.4 s). The same case on 200 x 20 x 40 cells (`--only paper`; 30,000 ->
+# (0.81 s each), particles 172 s for 36 x 30,000 parcels (1.59e-4 s per parcel, about 1,380
+# steps each at L/U0 = 0.4 s; the periodic form of the case takes as many, 1,375). The same case on 200 x 20 x 40 cells (`--only paper`; 30,000 ->
 # 240,000 parcels): 1.80e-4 s per parcel; scenes a and e on 400 x 20 x 40: 2.43e-4 and 2.47e-4.
 # The same VM type on another host ran the particle kernel 1.5 times slower.
 #: gas-solver wall time per cell and coupling pass [s] (developing mode)
@@ -70,7 +70,7 @@ GAS_SECONDS_PER_CELL = 0.81 / 40000
 SINGLE_PHASE_SECONDS_PER_CELL = 2.30 / 320000
 #: particle steps per parcel of the measurement [1], at its L/U0 = 0.4 s, step factor 0.5,
 #: 10 rings and 50 axial cells per metre
-STEPS_PER_PARCEL_MEASURED = 1225
+STEPS_PER_PARCEL_MEASURED = 1380
 _MEASURED_TRANSIT, _MEASURED_STEP_FACTOR, _MEASURED_RINGS, _MEASURED_AXIAL_DENSITY = 0.4, 0.5, 10, 50.0
 #: particle steps per second of wall time, whole machine (two threads) [1/s]
 PARTICLE_STEPS_PER_SECOND = STEPS_PER_PARCEL_MEASURED / (172.0 / (36 * 30000))
@@ -290,7 +290,8 @@ def runtime_estimate(case: Case) -> tuple[float, float, str]:
     Model: each pass costs a gas solve, GAS_SECONDS_PER_CELL x cells, and a Lagrangian pass,
     parcels x steps per parcel / PARTICLE_STEPS_PER_SECOND, with steps per parcel =
     STEPS_PER_PARCEL_MEASURED x (L/U0) / 0.4 s x 0.5 / step_factor x (nr / 10)^0.18 x
-    (n_x / L / 50 m⁻¹)^0.45 (nx = 1 for a periodic pipe). A coupled
+    (n_x / L / 50 m⁻¹)^0.45 (1 for a periodic pipe, whose one axial cell does not limit the
+    step). A coupled
     run: one single-phase solve, then TYPICAL_PASSES passes (at most max_passes), the last
     average_passes of them with numerics.parcels and the others with numerics.parcels_start;
     one-way coupling: one gas solve and the average_passes passes. Single-phase: one gas solve
@@ -309,9 +310,12 @@ def runtime_estimate(case: Case) -> tuple[float, float, str]:
         return t, t, basis
     gas = GAS_SECONDS_PER_CELL * cells
     transit = case.pipe.length / case.gas.bulk_velocity
+    # a periodic pipe's parcels take the developing pipe's steps (its one axial cell does not
+    # limit the step): the axial factor applies to developing pipes only
+    axial = 1.0 if case.pipe.mode == "periodic" else \
+        (nx / case.pipe.length / _MEASURED_AXIAL_DENSITY) ** AXIAL_REFINEMENT_EXPONENT
     steps = (STEPS_PER_PARCEL_MEASURED * transit / _MEASURED_TRANSIT * _MEASURED_STEP_FACTOR
-             / n.step_factor * (n.radial_cells / _MEASURED_RINGS) ** REFINEMENT_EXPONENT
-             * (nx / case.pipe.length / _MEASURED_AXIAL_DENSITY) ** AXIAL_REFINEMENT_EXPONENT)
+             / n.step_factor * (n.radial_cells / _MEASURED_RINGS) ** REFINEMENT_EXPONENT * axial)
     per_parcel = steps / PARTICLE_STEPS_PER_SECOND
 
     def total(passes):

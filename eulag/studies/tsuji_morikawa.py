@@ -13,7 +13,7 @@ from eulag.config import Case
 from .profiles import diameter_profile, profile_deviation, provenance, read_measurements
 from .report import (COLLISION_MOMENTUM_TEXT, Column, _figure, _per_run_figures, _run_cells, _run_columns,
                      _settings_text, _station, _stations_text, write_csv, write_report)
-from .runner import BASE_CASE, _BadInput, _base_case, _finish, _with_parcels, run_case
+from .runner import BASE_CASE, _BadInput, _base_case, _finish, _with_parcels, refuse_report_of_nothing, run_case
 
 
 TM_VELOCITIES = (10.0, 15.0)
@@ -77,6 +77,7 @@ def study_tsuji_morikawa(args, outdir: Path, t_start: float) -> int:
         if "curves" in rec.metrics:
             curves[name] = rec.metrics["curves"]
 
+    refuse_report_of_nothing(args, records, outdir)  # before the points' CSV is written
     rows = []
     for (name, case), rec in zip(cases, records):
         for phase in ("gas", "particle"):
