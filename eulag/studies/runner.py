@@ -52,17 +52,21 @@ def _with_parcels(case: Case, parcels: int | None) -> Case:
         raise _BadInput(str(exc)) from None
 
 
-#: study options whose values make other cases (not a selection of the study's runs): a --report
-#: must repeat them as the runs were made
+#: study options whose values make other cases, and the options that select the study's runs: a
+#: --report must repeat them as the runs were made
 _CASE_OPTIONS = (("--quick", "quick", None), ("--parcels", "parcels", int),
-                 ("--from-state", "from_state", lambda v: Path(v).name), ("--window", "window", float))
+                 ("--from-state", "from_state", lambda v: Path(v).name), ("--window", "window", float),
+                 # the selection too: another selection's table would replace the folder's rows
+                 ("--only", "only", lambda v: ",".join(sorted(w.strip() for w in str(v).split(",") if w.strip()))),
+                 ("--long", "long", None))
 
 
 def _check_report_settings(args, out: Path) -> None:
     """--report in a folder whose README the study wrote with other ``--quick``, ``--parcels``,
-    ``--from-state`` or ``--window`` settings: bad input.  Its runs are other cases than this
-    invocation's, so every row would say "not run", and the table would replace the folder's
-    README.  (A README without the generated line, e.g. edited by hand, is not checked.)"""
+    ``--from-state`` or ``--window`` settings, or another selection (``--only``, ``--long``): bad
+    input.  Its runs are other cases than this invocation's, or other runs, so rows would say
+    "not run", and the table would replace the folder's README.  (A README without the
+    generated line, e.g. edited by hand, is not checked.)"""
     import re
     import shlex
 
@@ -101,8 +105,8 @@ def _check_report_settings(args, out: Path) -> None:
     differ = [flag for flag in before if before[flag] != now[flag]]
     if differ:
         raise _BadInput(f"--report: the runs in {out} were made by `{command}`; allowed: --report with the same "
-                        f"{', '.join(differ)} setting{'s' if len(differ) > 1 else ''} (with these every row would be "
-                        f"another case, not run)")
+                        f"{', '.join(differ)} setting{'s' if len(differ) > 1 else ''} (with these its rows would be "
+                        f"other cases or other runs, not run)")
 
 
 def _output_dir(args, made: list | None = None) -> Path:
