@@ -202,16 +202,13 @@ class DarcySolver:
         M = sp.csr_matrix((vals_M, (rows, cols)), shape=(n, n))
         p_old = self.p.ravel()
         rhs = C * p_old - (1 - th) * (M @ p_old) + rhs_src
-        if g.periodic:
-            G, gcol = self._periodic_gradient(M, fa, fb, T, U, nxf, phi, u, v_s)
+        G = 0.0
+        if g.periodic:  # rhs_src holds the u terms alone (no boundary terms on a periodic tube)
+            G, gcol = self._periodic_gradient(M, rhs_src, fa, fb, T, nxf, U, phi, u, v_s)
             rhs = rhs + gcol * G
             rhs_src = rhs_src + gcol * G
-            K = (sp.diags(C) + th * M).tocsc()
-            p_new = spla.splu(K).solve(rhs)
-        else:
-            K = (sp.diags(C) + th * M).tocsc()
-            p_new = spla.splu(K).solve(rhs)
-            G = 0.0
+        K = (sp.diags(C) + th * M).tocsc()
+        p_new = spla.splu(K).solve(rhs)
         pm = th * p_new + (1 - th) * p_old
         self.last = dict(dt=dt, C=C, p_old=p_old, p_new=p_new, pm=pm, M=M, src=rhs_src, t_out=t_out,
                          last=last, G=G, kap=kap, v_s=v_s, phi=phi, u=u)
@@ -219,12 +216,12 @@ class DarcySolver:
         self.G = float(G)
         return self.p
 
-    def _periodic_gradient(self, M, fa, fb, T, U, nxf, phi, u, v_s):
+    def _periodic_gradient(self, M, src_u, fa, fb, T, nxf, U, phi, u, v_s):
         """(G, gcol): the mean gradient G [Pa/m] of a periodic tube and its column in the cell
         equations (M P′ = sources + gcol G).
 
-        G is quasi-steady: P′ = P_u + G P_G solves the steady discrete equations, M P_u = the
-        −P0 ∇·u terms and M P_G = gcol (M is singular on the periodic tube: one cell's P′ is
+        G is quasi-steady: P′ = P_u + G P_G solves the steady discrete equations, M P_u = src_u
+        (the −P0 ∇·u terms) and M P_G = gcol (M is singular on the periodic tube: one cell's P′ is
         pinned), and G is the one value for which the mixture volume flux through the
         x-faces of that steady field, the same through every cross-section, equals
         v_s A + Σ (1 − φ) u_x V / L, the superficial gas flux plus the tube-mean solids flux.
@@ -235,9 +232,6 @@ class DarcySolver:
         gcol = np.zeros(n)
         np.add.at(gcol, xa, xT * g.lx)
         np.add.at(gcol, xb, -xT * g.lx)
-        src_u = np.zeros(n)
-        np.add.at(src_u, fa, -self.p0 * U)
-        np.add.at(src_u, fb, self.p0 * U)
         # P′ is fixed up to a constant: pin the first cell at 0 and solve for the others (both
         # right-hand sides sum to zero, so the first cell's equation holds too)
         lu = spla.splu(M[1:, 1:].tocsc())

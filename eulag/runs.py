@@ -293,6 +293,17 @@ def dataset_state(out: str | Path, case) -> str | None:
     out = Path(out)
     if not out.is_file():
         return None
+    state, foreign = _output_contents(out, case)
+    if foreign is not None:
+        what, allowed = foreign
+        raise BadInput(f"--resume: {what}; allowed: {allowed}")
+    return state
+
+
+def _output_contents(out: Path, case) -> tuple[str | None, str | None]:
+    """(:func:`stored_state` of the existing file ``out`` for ``case``, None) when it holds this
+    case's dataset, else (None, (what it holds instead, what a resume allows)): another case,
+    naming the keys that differ, or a file that cannot be read as a dataset."""
     import xarray as xr
 
     try:
@@ -303,13 +314,13 @@ def dataset_state(out: str | Path, case) -> str | None:
     except Exception as exc:  # noqa: BLE001 - any unreadable file is reported the same way
         from eulag.arguments import short_reason
 
-        raise BadInput(f"--resume: {out} exists but cannot be read as a dataset ({short_reason(exc)}); allowed: "
-                       "this case's output, or a path that does not exist yet") from None
+        return None, (f"{out} exists but cannot be read as a dataset ({short_reason(exc)})",
+                      "this case's output, or a path that does not exist yet")
     if not same:
         what = case_difference(attrs, case)
-        raise BadInput(f"--resume: {out} holds a different case{f' ({what})' if what else ''}; allowed: the output "
-                       "of this case, or run without --resume to overwrite")
-    return state
+        return None, (f"{out} holds a different case{f' ({what})' if what else ''}",
+                      "the output of this case, or run without --resume to overwrite")
+    return state, None
 
 
 def case_difference(attrs: dict, case) -> str:
@@ -475,11 +486,9 @@ def _prepare_output(case, out: Path, *, resume: bool, notify) -> None:
                            "or run without --resume to start afresh)")
     else:
         if out.is_file() and notify is not None:
-            try:
-                dataset_state(out, case)
-            except BadInput as exc:  # another case's dataset, or not a dataset: say that it goes
-                why = str(exc).removeprefix("--resume: ").split("; allowed")[0]
-                notify(f"{why}; this run replaces it when it ends")
+            foreign = _output_contents(out, case)[1]  # another case's dataset, or not a dataset
+            if foreign is not None:
+                notify(f"{foreign[0]}; this run replaces it when it ends")
         if ckpt is not None and ckpt.exists():
             ckpt.unlink()
             if notify is not None:

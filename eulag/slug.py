@@ -103,7 +103,7 @@ _INTS = {("numerics", "cells_x"), ("numerics", "cells_across"), ("numerics", "st
 END_TIME_MAX_S = 1e5
 #: Largest values of the integers (numerics.seed: any int64 >= 0; the others at most 10⁷): the gas
 #: grid of the paper has 150 x 2 x 2 nodes.
-_INT_MAX = {"cells_x": 100_000, "cells_across": 64}
+_INT_MAX = {"cells_x": 100_000}  # cells_across: MAX_CELLS_ACROSS, checked with its reason
 _INT_MIN = {"cells_x": 3}
 _BOOLS = {("tube", "periodic"), ("numerics", "parallel")}
 #: The most gas cells across the tube for which every cell of the square grid holds part of the
