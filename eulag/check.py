@@ -60,8 +60,10 @@ SALTATION_MARGIN = 1.2
 # tests/benchmarks/bench_speed.py): the base case cases/tsuji_morikawa_200um.toml (200 x 10 x 20
 # cells, 30,000 parcels, four-way) converged in 36 passes, 206 s: gas 30 s over 37 solves
 # (0.81 s each), particles 172 s for 36 x 30,000 parcels (1.59e-4 s per parcel, about 1,380
-# steps each at L/U0 = 0.4 s; the periodic form of the case takes as many, 1,375). The same case on 200 x 20 x 40 cells (`--only paper`; 30,000 ->
-# 240,000 parcels): 1.80e-4 s per parcel; scenes a and e on 400 x 20 x 40: 2.43e-4 and 2.47e-4.
+# steps each at L/U0 = 0.4 s; the periodic form of the case takes as many, 1,375, in a run of
+# 2 passes with 3,000 parcels). The same case on 200 x 20 x 40 cells (`--only paper`; 30,000
+# -> 240,000 parcels): 1.80e-4 s per parcel; scenes a and e on 400 x 20 x 40: 2.43e-4 and
+# 2.47e-4.
 # The same VM type on another host ran the particle kernel 1.5 times slower.
 #: gas-solver wall time per cell and coupling pass [s] (developing mode)
 GAS_SECONDS_PER_CELL = 0.81 / 40000
