@@ -1,12 +1,15 @@
-"""Windowed numbers of a slug run continued from the filled tube (the long μ runs of README.md):
+"""Windowed numbers of a slug run continued from the filled tube (the long μ runs of README.md,
+the runs of boundary-6bae946/):
 
     python results/strauss-filled/windows.py RUN.nc [...]
 
 For each run: the regime numbers (``eulag.studies.strauss.classify_regime``) of every 2-s window
 from the state's time (13.25 s), and over the run after its first 2 s (the state was made at
-μ = 0.5) the means with the standard deviation of the 2-s window means of Δp and the slug
+v_s = 1 m/s and μ = 0.5) the means with the standard deviation of the 2-s window means of Δp and the slug
 statistics (``eulag.slug.summarize``). Printed, and written into extra_runs.json beside this
-script under the run's name.
+script under the run's name, with the case file of that name beside this script, or else the
+run as a run of ``eulag study strauss`` (its record and the study's command are in the README
+of the folder that holds it).
 """
 
 import json
@@ -38,7 +41,10 @@ def windows(path):
                                                           if w["window_s"][0] >= START + SETTLE], ddof=1))}
     s = summarize(ds, t_min=START + SETTLE)
     after.update({k: s.get(k) for k in SLUG_KEYS})
-    return {"case_file": f"{Path(path).stem}.toml", "time_last_s": t_end,
+    stem = Path(path).stem
+    source = ({"case_file": f"{stem}.toml"} if Path(__file__).with_name(f"{stem}.toml").exists()
+              else {"study_run": stem})
+    return {**source, "time_last_s": t_end,
             "grains_in_tube_last": float(ds.grains_in_tube.values[-1]), "wall_time_s": float(ds.attrs["wall_time_s"]),
             "after_first_2s": after, "windows_2s": rows}
 
