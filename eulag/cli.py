@@ -345,8 +345,10 @@ def _coupled_summary(case, loop, ds, out) -> str:
         *_collision_momentum_line(case, h),
         *_collision_force_line(case, ds),
         *_conveying_lines(case, ds),
-        f"  wall time    gas {t.get('gas_solve', 0):.1f} s, Lagrangian {t.get('lagrangian', 0):.1f} s, "
-        f"checkpoints {t.get('checkpoint', 0):.1f} s, total {t.get('total', 0):.1f} s",
+        f"  wall time    gas {t.get('gas_solve', 0):.1f} s, Lagrangian {t.get('lagrangian', 0):.1f} s"
+        + (f" ({t.get('lagrangian_after_gas', 0):.1f} s of it after the gas solves)"
+           if t.get('lagrangian_after_gas', 0) < 0.99 * t.get('lagrangian', 0) else "")
+        + f", checkpoints {t.get('checkpoint', 0):.1f} s, total {t.get('total', 0):.1f} s",
         f"  written      {out}",
     ]
     return "\n".join(lines)

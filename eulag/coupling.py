@@ -118,6 +118,7 @@ import numpy as np
 import particles
 import rans
 from particles.layout import CS_APP, CS_ST, NCS
+from particles.stream import StreamedPass
 from collisions import InterparticleOptions, WallOptions
 from eulag.files import savez_atomic
 
@@ -620,7 +621,7 @@ class CouplingLoop:
     criteria_names = CRITERIA
 
     def __init__(self, case, *, checkpoint=None, resume=False, parcels=None, progress=None,
-                 tracker=None, notify=None):
+                 tracker=None, notify=None, stream=None):
         started = time.perf_counter()
         if case.particles is None:
             raise ValueError("CouplingLoop needs a case with [particles]")
@@ -632,6 +633,11 @@ class CouplingLoop:
         self.progress = progress
         self.notify = notify
         self.tracker = particles.track if tracker is None else tracker
+        # the next pass tracked beside the gas march that feeds it (particles.stream; the same
+        # numbers): by default with the local tracker, in a developing pipe
+        self.stream_passes = (tracker is None) if stream is None else bool(stream)
+        self._stream = None
+        self.streamed = 0  # passes (of this session) whose tracking ran beside a gas solve
         self.mesh = build_mesh(case)
         self.gas_props = rans.GasProperties(density=case.gas.density, viscosity=case.gas.viscosity)
         self.spec = particle_spec(case)
@@ -646,7 +652,8 @@ class CouplingLoop:
         self.history = _History()
         # wall-clock seconds per stage; "total" (the run's whole wall time, over every resumed
         # session) is kept up to date at each checkpoint
-        self.timings = {"gas_solve": 0.0, "lagrangian": 0.0, "checkpoint": 0.0}
+        # ("lagrangian_after_gas": the particle time not overlapped by a gas solve, particles.stream)
+        self.timings = {"gas_solve": 0.0, "lagrangian": 0.0, "lagrangian_after_gas": 0.0, "checkpoint": 0.0}
         self.pass_index = 0
         self.phase = "early"
         self.final_left = case.numerics.average_passes
@@ -694,13 +701,14 @@ class CouplingLoop:
     # there, a failed solve goes straight to the halving of the source relaxation α.
     _GAS_RELAXATION = ((1.0, 1.0), (0.7, 1.0), (0.5, 0.7))
 
-    def _solve_gas(self, sources, final=False, residual=math.nan):
+    def _solve_gas(self, sources, final=False, residual=math.nan, on_station=None):
         """The gas field with ``sources`` (None: single phase), its wall time and the implicit
         k-ε relaxation it needed (1 unless a first attempt diverged).  ``final``: a solve to
         convergence (periodic mode: not capped at gas_iterations_per_pass), from the last
         iterate; a march station still converging when the usual extension of its iterations
         runs out iterates on (rans.solver.FINAL_STATION_EXTENSION).  ``residual``: the coupling
-        residual of ``sources`` (numerics.gas_station_retries, numerics.gas_tolerance_early)."""
+        residual of ``sources`` (numerics.gas_station_retries, numerics.gas_tolerance_early).
+        ``on_station``: the march's station callback (rans.solve), for a streamed pass."""
         n = self.case.numerics
         g = self.case.gas
         initial = self.gas if self.mesh.mode == "periodic" else None
@@ -721,7 +729,8 @@ class CouplingLoop:
                                         turbulence_relaxation=tr, momentum_relaxation=mr,
                                         require_convergence=not inner, station_retries=retries,
                                         station_extension=(rans.solver.FINAL_STATION_EXTENSION if final
-                                                           else rans.solver.STATION_EXTENSION))
+                                                           else rans.solver.STATION_EXTENSION),
+                                        on_station=on_station)
                     sr = field_.station_relaxation
                     used = min(tr, float(np.min(sr))) if sr is not None else tr
                     break
@@ -782,6 +791,54 @@ class CouplingLoop:
         """Run one Lagrangian pass and the gas solve that follows; returns its PassState."""
         if self.finished:
             raise StopIteration
+        try:
+            return self._step()
+        except BaseException:
+            self._drop_stream()
+            raise
+
+    # ------------------------------------------------------------------ streamed passes
+    def _stream_next(self, m):
+        """Pass m + 1, to be tracked beside the gas march of pass m that feeds it
+        (particles.StreamedPass), or None where it is not streamed: a tracker other than the
+        local one, a one-way or periodic run, no pass m + 1.  Its parcel count is the one pass
+        m + 1 has unless pass m is the one after which the loop converges (then it is dropped)."""
+        n = self.case.numerics
+        if not (self.stream_passes and self.two_way and self.mesh.mode == "developing"):
+            return None
+        if self.phase == "final":
+            if self.final_left <= 1:
+                return None
+            parcels = n.parcels
+        else:
+            parcels = n.parcels if m + 1 > n.max_passes - n.average_passes else n.parcels_start
+        stats = self.stats if self.physics.inter_particle_collisions else None
+        stream = StreamedPass(self.mesh, self.gas_props, self.spec, self.physics, parcels=parcels,
+                              seed=n.seed, pass_index=m + 1, stats=stats, settings=self.settings,
+                              partner_stokes=self.physics.partner_correlation == "cell")
+        stream.key = (m + 1, parcels, stats)
+        return stream
+
+    def _streamed_sample(self, m, parcels):
+        """The sample of pass m if it was streamed with the inputs it has, else None."""
+        stream, self._stream = self._stream, None
+        if stream is None:
+            return None
+        stats = self.stats if self.physics.inter_particle_collisions else None
+        key = stream.key
+        if key[0] == m and key[1] == parcels and key[2] is stats and stream.gas is self.gas:
+            sample = stream.result()
+            self.streamed += 1
+            return sample
+        stream.cancel()
+        return None
+
+    def _drop_stream(self):
+        if self._stream is not None:
+            self._stream.cancel()
+            self._stream = None
+
+    def _step(self):
         n = self.case.numerics
         if self.gas0 is None:
             self.gas0, _, _ = self._solve_gas(None)
@@ -803,11 +860,18 @@ class CouplingLoop:
             stats = stats.copy()
             stats[:, CS_ST] = particles.cell_stokes(stats, self.gas, self.spec)
         t0 = time.perf_counter()
-        sample = self.tracker(self.mesh, self.gas, self.spec, self.physics, parcels=parcels_m,
-                              seed=n.seed, pass_index=m, stats=stats, settings=self.settings)
+        sample = self._streamed_sample(m, parcels_m)
+        if sample is None:
+            sample = self.tracker(self.mesh, self.gas, self.spec, self.physics, parcels=parcels_m,
+                                  seed=n.seed, pass_index=m, stats=stats, settings=self.settings)
+            t_part = time.perf_counter() - t0
+        else:  # tracked beside the gas solve of the pass before: its own wall time, of which
+            # the part after that solve goes to timings["lagrangian_after_gas"]
+            t_part = sample.wall_time
+        self.timings["lagrangian_after_gas"] = (self.timings.get("lagrangian_after_gas", 0.0)
+                                                + time.perf_counter() - t0)
         if n.mirror_symmetry:
             sample = sample.mirror_symmetrised()
-        t_part = time.perf_counter() - t0
         self.timings["lagrangian"] += t_part
         counts = sample.counts
         if counts["lost"]:
@@ -826,10 +890,14 @@ class CouplingLoop:
             alpha = self.alpha
             while True:
                 relaxed, residual = self._relax(computed, sample, alpha)
+                self._stream = self._stream_next(m)
                 try:
-                    gas, t_gas, gas_relax = self._solve_gas(self._gas_sources(relaxed), residual=residual)
+                    gas, t_gas, gas_relax = self._solve_gas(
+                        self._gas_sources(relaxed), residual=residual,
+                        on_station=None if self._stream is None else self._stream.station)
                     break
                 except rans.SolverDivergence as err:
+                    self._drop_stream()
                     if alpha / 2 < MIN_RELAXATION:
                         raise CouplingError(f"pass {m}: gas solve with the particle sources failed even "
                                             f"with relaxation {alpha:g}: {err}") from None
@@ -840,6 +908,9 @@ class CouplingLoop:
                 self.alpha_changed_at = m - 1
                 self.alpha_cap = min(self.alpha_cap, alpha)
             self.alpha = alpha
+            if self._stream is not None:
+                self._stream.finish(gas)
+                self._stream.gas = gas
             applied = self._gas_sources(relaxed)
             relaxed["epsilon"] = applied.applied_epsilon(gas.k, gas.epsilon)
             if "drag" in relaxed:  # the source as applied in the new gas field, which it now refers to

@@ -78,39 +78,15 @@ class FieldTable:
     def from_gas(cls, mesh, gas):
         """Table of a converged :class:`rans.GasField` ``gas`` on ``mesh``."""
         nx, nr, nt = mesh.shape
-        sec = mesh.geometry()
         ux, uy, uz, k, eps = (np.asarray(getattr(gas, n), dtype=np.float64).reshape(nx, nr, nt)
                               for n in ("ux", "uy", "uz", "k", "epsilon"))
-        # vorticity from the cross-section gradients (d/dz, d/dy) per station (velocities vanish
-        # at the wall) and axial central differences
-        g = {}
-        for name, phi, wall in (("ux", ux, 0.0), ("uy", uy, 0.0), ("uz", uz, 0.0)):
-            dz = np.empty((nx, nr, nt))
-            dy = np.empty((nx, nr, nt))
-            for i in range(nx):
-                a, b = sec.gradient(phi[i].ravel(), wall)
-                dz[i] = a.reshape(nr, nt)
-                dy[i] = b.reshape(nr, nt)
-            if nx > 1:
-                dx = np.gradient(phi, mesh.x, axis=0)
-            else:
-                dx = np.zeros_like(phi)
-            g[name] = (dx, dy, dz)
         tab = np.empty((nx, nr, nt, NT))
-        tab[..., F_UX] = ux
-        tab[..., F_UY] = uy
-        tab[..., F_UZ] = uz
-        tab[..., F_K] = k
-        tab[..., F_EPS] = eps
-        tab[..., F_WX] = g["uz"][1] - g["uy"][2]  # d uz/dy - d uy/dz
-        tab[..., F_WY] = g["ux"][2] - g["uz"][0]  # d ux/dz - d uz/dx
-        tab[..., F_WZ] = g["uy"][0] - g["ux"][1]  # d uy/dx - d ux/dy
-        if not np.all(np.isfinite(tab)):
-            raise ValueError("gas field has non-finite values; cannot track particles in it")
-        if np.any(k <= 0.0) or np.any(eps <= 0.0):
-            raise ValueError("gas field has k <= 0 or epsilon <= 0; cannot track particles in it")
-        axis = tab[:, 0, :, :].mean(axis=1)
-        return cls(values=np.ascontiguousarray(tab), axis=np.ascontiguousarray(axis),
+        axis = np.empty((nx, NT))
+        table_rows(mesh.geometry(), mesh.x, ux, uy, uz, k, eps, 0, nx, tab, axis)
+        problem = table_problem(tab, k, eps)
+        if problem:
+            raise ValueError(problem)
+        return cls(values=tab, axis=axis,
                    x_centres=np.asarray(mesh.x, dtype=np.float64).copy(),
                    x_edges=np.asarray(mesh.x_edges, dtype=np.float64).copy(),
                    r_centres=np.asarray(mesh.r, dtype=np.float64).copy(),
@@ -129,6 +105,76 @@ class FieldTable:
                     self.r_centres, self.r_edges, self.length, self.radius, self.nu, out, -1,
                     bool(wall_law))
         return out
+
+
+def axial_gradient(phi, x, j0, j1):
+    """Rows j0 … j1−1 of ``np.gradient(phi, x, axis=0)`` (first-order edges), bit for bit:
+    central differences on non-uniform spacing inside, one-sided at the ends, and numpy's
+    scalar form when the spacing is uniform to the last bit.  Rows need only their two
+    neighbours, so a table can be built station by station as a march produces them
+    (particles.stream) and still equal the table of the whole field."""
+    nx = phi.shape[0]
+    out = np.empty((j1 - j0,) + phi.shape[1:])
+    if nx == 1:
+        out[...] = 0.0
+        return out
+    diffx = np.diff(np.asarray(x, dtype=np.float64))
+    uniform = bool((diffx == diffx[0]).all())
+    lo, hi = max(j0, 1), min(j1, nx - 1)  # interior rows
+    if hi > lo:
+        if uniform:
+            out[lo - j0:hi - j0] = (phi[lo + 1:hi + 1] - phi[lo - 1:hi - 1]) / (2.0 * diffx[0])
+        else:
+            dx1 = diffx[lo - 1:hi - 1]
+            dx2 = diffx[lo:hi]
+            shape = (-1,) + (1,) * (phi.ndim - 1)
+            a = (-(dx2) / (dx1 * (dx1 + dx2))).reshape(shape)
+            b = ((dx2 - dx1) / (dx1 * dx2)).reshape(shape)
+            c = (dx1 / (dx2 * (dx1 + dx2))).reshape(shape)
+            out[lo - j0:hi - j0] = a * phi[lo - 1:hi - 1] + b * phi[lo:hi] + c * phi[lo + 1:hi + 1]
+    if j0 == 0:
+        out[0] = (phi[1] - phi[0]) / diffx[0]
+    if j1 == nx:
+        out[nx - 1 - j0] = (phi[nx - 1] - phi[nx - 2]) / diffx[-1]
+    return out
+
+
+def table_rows(sec, x, ux, uy, uz, k, eps, j0, j1, tab, axis):
+    """Fill rows j0 … j1−1 of a field table ``tab`` (nx, nr, nt, NT) and of its axis values
+    ``axis`` (nx, NT) from the gas fields ux … eps (nx, nr, nt), of which rows j0−1 … j1 (those
+    that exist) must hold the gas: the vorticity takes the cross-section gradients of
+    ``sec`` (``rans.operators.Section``; velocities vanish at the wall) and the axial ones of
+    :func:`axial_gradient`.  The same rows come out however the range is split."""
+    nr, nt = ux.shape[1:]
+    n = j1 - j0
+    g = {}
+    for name, phi in (("ux", ux), ("uy", uy), ("uz", uz)):
+        dz = np.empty((n, nr, nt))
+        dy = np.empty((n, nr, nt))
+        for i in range(j0, j1):
+            a, b = sec.gradient(phi[i].ravel(), 0.0)
+            dz[i - j0] = a.reshape(nr, nt)
+            dy[i - j0] = b.reshape(nr, nt)
+        g[name] = (axial_gradient(phi, x, j0, j1), dy, dz)
+    rows = tab[j0:j1]
+    rows[..., F_UX] = ux[j0:j1]
+    rows[..., F_UY] = uy[j0:j1]
+    rows[..., F_UZ] = uz[j0:j1]
+    rows[..., F_K] = k[j0:j1]
+    rows[..., F_EPS] = eps[j0:j1]
+    rows[..., F_WX] = g["uz"][1] - g["uy"][2]  # d uz/dy - d uy/dz
+    rows[..., F_WY] = g["ux"][2] - g["uz"][0]  # d ux/dz - d uz/dx
+    rows[..., F_WZ] = g["uy"][0] - g["ux"][1]  # d uy/dx - d ux/dy
+    axis[j0:j1] = rows[:, 0, :, :].mean(axis=1)
+
+
+def table_problem(tab, k, eps):
+    """Why particles cannot be tracked in these table rows and gas k, ε ('' if they can)."""
+    if not np.all(np.isfinite(tab)):
+        return "gas field has non-finite values; cannot track particles in it"
+    if np.any(k <= 0.0) or np.any(eps <= 0.0):
+        return "gas field has k <= 0 or epsilon <= 0; cannot track particles in it"
+    return ""
 
 
 _C_MU_QUARTER = ke.C_MU**0.25

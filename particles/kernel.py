@@ -76,12 +76,13 @@ from .layout import (A_BETA, A_J, A_PP, A_PPK, CS_APP, A_KSEEN, A_MU, A_MUU, A_N
                      P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, P_WINDOW, S_EXITED, S_LOST,
                      S_STUCK, W_ANGLE, W_COUNT, W_SPEED)
 
-__all__ = ["PhysicsOptions", "make_motion", "make_tracker", "walk_segment", "MAX_SEGMENTS"]
+__all__ = ["PhysicsOptions", "make_motion", "make_tracker", "make_window_tracker", "fold_batches",
+           "walk_segment", "MAX_SEGMENTS"]
 
 # The parallel super-batch driver calls the (cached) batch kernel inside prange; numba cannot
 # cache such a parallel function ("dynamic globals"), so it is compiled once per process and
 # option set (about 2–3 s); everything it calls is cached.  The warning says only that.
-warnings.filterwarnings("ignore", message='Cannot cache compiled function "track_superbatch"',
+warnings.filterwarnings("ignore", message='Cannot cache compiled function "track_(superbatch|windows)"',
                         category=NumbaWarning)
 
 C_T = 0.24  # T_L = C_T σ²/ε (Sommerfeld 2001)
@@ -457,25 +458,9 @@ def tracker_variant(options):
 
 
 @lru_cache(maxsize=None)
-def make_tracker(options=PhysicsOptions()):
-    """Build ``track_batch`` and ``track_superbatch`` for ``options`` (memoised).
-
-        track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
-                    x_centres, tab, axis, stats, prm, out, state)
-
-    tracks parcels first … first+count−1 (global ids key their random streams) and adds
-    their samples to the flat vector ``out`` (layout.Layout); ``state`` (count, 16) receives
-    the final parcel state (NSTATE columns) [pos(3), vel(3), omega(3), u′(3), t_res, steps,
-    status, diameter, injection position(3)].
-
-        track_superbatch(starts, counts, ..., totals, squares, cross, ncell, states)
-
-    tracks the batches of one super-batch, in parallel (numba threads), each into its own
-    scratch vector, and folds them *in batch order* into totals (Σ_b s_b), squares
-    (Σ_b s_b²) and cross (Σ_b s_b · s_b[mass weight], cell accumulators only), so the result
-    does not depend on the thread count; ``states`` (parcels of the super-batch, NSTATE)
-    receives the final parcel states.
-    """
+def _build_trackers(options):
+    """(track_batch, track_superbatch, track_windows) for ``options``: make_tracker,
+    make_window_tracker."""
     advance = make_motion(options)
     wall_collision = make_wall_collision(options.wall)
     pp_collision = make_interparticle_collision(options.interparticle)
@@ -496,7 +481,7 @@ def make_tracker(options=PhysicsOptions()):
     def track_parcels(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                       x_centres, tab, axis, stats, prm, out, state, dvals, fvals, pos, vel, omega,
                       useen, uf, imp, dv, partner, seg_cell, seg_frac, mean_own, rms, wmean, wrms,
-                      saved, ray_sin, ray_cos, rng_inj, rng_disp, rng_wall, rng_pp, susp):
+                      saved, ray_sin, ray_cos, rng_inj, rng_disp, rng_wall, rng_pp, susp, w_first, w_last):
         if len(key) == 0:  # never true; keeps ``key`` in the closure (cache key)
             return
         nx = x_edges.shape[0] - 1
@@ -533,7 +518,9 @@ def make_tracker(options=PhysicsOptions()):
         if per <= 0 or per >= nx:
             per = nx
         nwin = (nx + per - 1) // per
-        for item in range(nwin * count):
+        # windows w_first … w_last − 1 of the sweep (all: 0, nwin); a later call resumes the
+        # suspended parcels (susp) where this one stopped (track_windows)
+        for item in range(w_first * count, min(w_last, nwin) * count):
             win = item // count
             q = item - win * count
             pid = first + q
@@ -955,24 +942,51 @@ def make_tracker(options=PhysicsOptions()):
         track_parcels, _ADVANCE=inlined(advance), _ADVANCE_CALL=advance, _WALK=inlined(walk_segment),
         _INTERPOLATE=inlined(interpolate), _WALL=wall_collision, _PP=inlined(pp_collision)))
 
-    def track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
-                    x_centres, tab, axis, stats, prm, out, state):
+    def track_batch_windows(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                            x_centres, tab, axis, stats, prm, out, state, susp, w_first, w_last):
         if len(key) == 0:
             return
         ray = np.arange(nt + 1) * (2.0 * math.pi / nt)
         rngs = np.zeros((4, RNG_STATE_SIZE), dtype=np.int64)
-        windowed = 0.0 < prm[P_WINDOW] < x_edges.shape[0] - 1  # more than one window
-        n_susp = count if windowed else 0  # suspended parcel states
-        susp = np.empty((n_susp, NSUSP))
         _TRACK_PARCELS(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                        x_centres, tab, axis, stats, prm, out, state, np.empty(NF), np.empty(NF),
                        np.empty(3), np.empty(3), np.zeros(3), np.zeros(3), np.empty(3), np.empty(3),
                        np.zeros(3), np.empty(9), np.empty(MAX_SEGMENTS, dtype=np.int64),
                        np.empty(MAX_SEGMENTS), np.empty(3), np.empty(3), np.empty(3), np.empty(3),
                        np.empty(6), np.sin(ray), np.cos(ray), rngs[0], rngs[1], rngs[2], rngs[3],
-                       susp)
+                       susp, w_first, w_last)
 
-    track_batch = njit(**JIT_FLAGS)(_with_globals(track_batch, _TRACK_PARCELS=track_parcels))
+    track_batch_windows = njit(**JIT_FLAGS)(_with_globals(track_batch_windows, _TRACK_PARCELS=track_parcels))
+
+    def track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                    x_centres, tab, axis, stats, prm, out, state):
+        if len(key) == 0:
+            return
+        windowed = 0.0 < prm[P_WINDOW] < x_edges.shape[0] - 1  # more than one window
+        n_susp = count if windowed else 0  # suspended parcel states
+        susp = np.empty((n_susp, NSUSP))
+        _TRACK_BATCH_WINDOWS(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                             x_centres, tab, axis, stats, prm, out, state, susp, 0, x_edges.shape[0])
+
+    track_batch = njit(**JIT_FLAGS)(_with_globals(track_batch, _TRACK_BATCH_WINDOWS=track_batch_windows))
+
+    def track_windows(starts, counts, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                      x_centres, tab, axis, stats, prm, scratch, states, susp, w_first, w_last):
+        # windows w_first … w_last − 1 of every batch of a super-batch, batch b into scratch[b]
+        # (zeroed by the caller before window 0) and its parcels' rows of states and susp
+        if len(key) == 0:
+            return
+        for s in prange(starts.shape[0]):
+            lo = starts[s] - starts[0]
+            hi = lo + counts[s]
+            _TRACK_BATCH_WINDOWS(starts[s], counts[s], seed, pass_, x_edges, r_edges, rc, nt, length,
+                                 radius, nu, x_centres, tab, axis, stats, prm, scratch[s], states[lo:hi],
+                                 susp[lo:hi], w_first, w_last)
+
+    # nogil: a super-batch streamed window by window runs beside the gas solve that feeds it
+    # its fields (particles.stream)
+    track_windows = njit(parallel=True, nogil=True, cache=True)(
+        _with_globals(track_windows, _TRACK_BATCH_WINDOWS=track_batch_windows))
 
     def track_superbatch(starts, counts, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                          x_centres, tab, axis, stats, prm, totals, squares, cross, n_acc_cells,
@@ -990,21 +1004,68 @@ def make_tracker(options=PhysicsOptions()):
                 _TRACK_BATCH(starts[b0 + s], counts[b0 + s], seed, pass_, x_edges, r_edges, rc, nt,
                              length, radius, nu, x_centres, tab, axis, stats, prm, scratch[s],
                              states[starts[b0 + s] - starts[0]:starts[b0 + s] - starts[0] + counts[b0 + s]])
-            for s in range(nin):  # fold in batch order: independent of the thread count
-                sc = scratch[s]
-                for a in range(size):
-                    v = sc[a]
-                    totals[a] += v
-                    squares[a] += v * v
-                for c in range(n_acc_cells):
-                    wm = sc[c * NACC + A_WM]
-                    if wm != 0.0:
-                        for a in range(NACC):
-                            cross[c * NACC + a] += sc[c * NACC + a] * wm
+            fold_batches(scratch, nin, totals, squares, cross, n_acc_cells)
 
-    track_superbatch = njit(parallel=True, cache=True)(
+    track_superbatch = njit(parallel=True, nogil=True, cache=True)(
         _with_globals(track_superbatch, _TRACK_BATCH=track_batch))
     # what the compiled code must report (options equal to these reuse this memoised pair,
     # though their repr may differ: 1.0 against np.float64(1.0))
     track_superbatch.eulag_variant = variant
-    return track_batch, track_superbatch
+    track_windows.eulag_variant = variant
+    return track_batch, track_superbatch, track_windows
+
+
+@lru_cache(maxsize=None)
+def make_tracker(options=PhysicsOptions()):
+    """Build ``track_batch`` and ``track_superbatch`` for ``options`` (memoised).
+
+        track_batch(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
+                    x_centres, tab, axis, stats, prm, out, state)
+
+    tracks parcels first … first+count−1 (global ids key their random streams) and adds
+    their samples to the flat vector ``out`` (layout.Layout); ``state`` (count, 16) receives
+    the final parcel state (NSTATE columns) [pos(3), vel(3), omega(3), u′(3), t_res, steps,
+    status, diameter, injection position(3)].
+
+        track_superbatch(starts, counts, ..., totals, squares, cross, ncell, states)
+
+    tracks the batches of one super-batch, in parallel (numba threads), each into its own
+    scratch vector, and folds them *in batch order* into totals (Σ_b s_b), squares
+    (Σ_b s_b²) and cross (Σ_b s_b · s_b[mass weight], cell accumulators only), so the result
+    does not depend on the thread count; ``states`` (parcels of the super-batch, NSTATE)
+    receives the final parcel states.
+    """
+    return _build_trackers(options)[:2]
+
+
+def make_window_tracker(options=PhysicsOptions()):
+    """``track_windows`` for ``options`` (memoised with :func:`make_tracker`):
+
+        track_windows(starts, counts, ..., stats, prm, scratch, states, susp, w_first, w_last)
+
+    sweeps windows w_first … w_last − 1 of every batch of a super-batch (in parallel over the
+    batches), batch b into ``scratch[b]`` (zero it before window 0) and its parcels' rows of
+    ``states`` and ``susp`` (parcels, NSUSP: the parcels suspended between two calls).  Called
+    for consecutive window ranges that cover the sweep, then folded with :func:`fold_batches`,
+    it gives the super-batch's sums bit for bit as ``track_superbatch`` does, whatever the
+    ranges: a batch's operations and their order are the same (particles.stream).
+    """
+    return _build_trackers(options)[2]
+
+
+@njit(**KERNEL_FLAGS)
+def fold_batches(scratch, nin, totals, squares, cross, n_acc_cells):
+    """Fold batches 0 … nin−1 of ``scratch`` into totals (Σ s_b), squares (Σ s_b²) and cross
+    (Σ s_b · s_b[mass weight], the n_acc_cells cell accumulators) in batch order, so the sums
+    do not depend on the thread count."""
+    size = totals.shape[0]
+    for s in range(nin):
+        for a in range(size):
+            v = scratch[s, a]
+            totals[a] += v
+            squares[a] += v * v
+        for c in range(n_acc_cells):
+            wm = scratch[s, c * NACC + A_WM]
+            if wm != 0.0:
+                for a in range(NACC):
+                    cross[c * NACC + a] += scratch[s, c * NACC + a] * wm

@@ -37,7 +37,8 @@ from .layout import (A_BETA, A_J, A_KSEEN, A_PP, A_PPK, CS_APP, A_MU, A_MUU, A_N
 from .symmetry import mirror_average_vector
 
 __all__ = ["ParticleSpec", "TrackSettings", "Sample", "track", "batch_plan", "GRAVITY", "PassInputs",
-           "prepare_pass", "run_superbatch", "fold_superbatches", "make_sample", "cell_stokes"]
+           "prepare_pass", "run_superbatch", "fold_superbatches", "make_sample", "cell_stokes",
+           "stokes_of_cells"]
 
 GRAVITY = 9.81  # m s-2
 C_EPS3 = 1.8  # S_eps = C_eps3 (eps/k) S_k (seed)
@@ -71,15 +72,21 @@ def cell_stokes(stats, gas, spec):
     ``stats``: (ncell, NCS) cell statistics (their mean velocity gives the cell-mean slip of
     τ_p, Schiller–Naumann); T_L = C_T (2/3) k/ε from the gas cell-centre values.
     """
-    mu = gas.gas.viscosity
-    rho = gas.gas.density
+    return stokes_of_cells(stats, gas.ux.ravel(), gas.uy.ravel(), gas.uz.ravel(), gas.k.ravel(),
+                           gas.epsilon.ravel(), gas.gas, spec)
+
+
+def stokes_of_cells(stats, ux, uy, uz, k, eps, gas_props, spec):
+    """:func:`cell_stokes` for the rows of ``stats`` and the gas values of the same cells (flat
+    arrays); elementwise, so any subset of cells gets the numbers of the whole pipe."""
+    mu = gas_props.viscosity
+    rho = gas_props.density
     d = spec.diameter
-    slip = np.sqrt((gas.ux.ravel() - stats[:, CS_U]) ** 2 + (gas.uy.ravel() - stats[:, CS_U + 1]) ** 2
-                   + (gas.uz.ravel() - stats[:, CS_U + 2]) ** 2)
+    slip = np.sqrt((ux - stats[:, CS_U]) ** 2 + (uy - stats[:, CS_U + 1]) ** 2 + (uz - stats[:, CS_U + 2]) ** 2)
     re_p = rho * d * slip / mu  # drag factor f_d of Schiller & Naumann, Newton above 1000
     f_d = np.where(re_p > 1000.0, 0.44 * re_p / 24.0, 1.0 + 0.15 * re_p**0.687)
     tau_p = spec.density * d * d / (18.0 * mu * f_d)
-    t_l = C_T * (2.0 / 3.0) * gas.k.ravel() / gas.epsilon.ravel()
+    t_l = C_T * (2.0 / 3.0) * k / eps
     return tau_p / t_l
 
 
@@ -481,8 +488,11 @@ class PassInputs:
 
 
 def prepare_pass(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, pass_index=0,
-                 stats=None, settings=TrackSettings(), table=None):
-    """The :class:`PassInputs` of one pass (arguments as :func:`track`)."""
+                 stats=None, settings=TrackSettings(), table=None, gas_props=None):
+    """The :class:`PassInputs` of one pass (arguments as :func:`track`; ``gas`` may be None
+    when ``table`` and the gas properties ``gas_props`` are given)."""
+    if gas_props is None:
+        gas_props = gas.gas
     if table is None:
         table = FieldTable.from_gas(mesh, gas)
     nx, nr, nt = mesh.shape
@@ -496,7 +506,7 @@ def prepare_pass(mesh, gas, spec, physics=PhysicsOptions(), *, parcels, seed=1, 
         stats = np.zeros((ncell, NCS))
     elif stats.shape != (ncell, NCS):  # the kernel reads the rows unchecked
         raise ValueError(f"stats: shape {stats.shape}, the tracker reads ({ncell}, {NCS}) (cells, layout.NCS)")
-    prm = parameters(spec, gas.gas, mesh, settings, parcels, physics.gravity)
+    prm = parameters(spec, gas_props, mesh, settings, parcels, physics.gravity)
     return PassInputs(table=table, stats=stats, prm=prm, physics=physics, seed=int(seed),
                       pass_index=int(pass_index), parcels=int(parcels), starts=starts, counts=counts,
                       supers=tuple(supers), nt=nt, ncell=ncell, size=lay.size)

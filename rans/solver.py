@@ -845,6 +845,7 @@ def solve(
     production_limit=None,
     station_retries=True,
     station_extension=STATION_EXTENSION,
+    on_station=None,
 ):
     """Solve the steady gas flow on ``mesh``; returns a :class:`GasField`.
 
@@ -878,6 +879,11 @@ def solve(
     ``GasField.production_limited``).  k and eps are held above K_FLOOR U_b^2 and
     C_mu k_floor^(3/2)/D (counted per station in ``GasField.floored``).
     momentum_scheme: "hybrid" (default), "upwind" or "central" cross-section convection.
+    on_station (developing): called as ``on_station(i, ux, uy, uz, k, eps)`` with station i's
+    final cross-section fields (flat, (nr·nt,), in the order of ``GasField.ux[i].ravel()``)
+    as soon as the march has them; the march does not touch a station again, so a consumer
+    can use the stations upstream while the march goes on (particles.stream).  The periodic
+    mode, whose stations are final only at convergence, never calls it.
 
     Raises :class:`SolverDivergence` on non-finite or non-positive k/epsilon, or when the
     periodic mode does not reach ``tol`` within ``max_iterations`` (message says so) unless
@@ -1009,6 +1015,8 @@ def solve(
             station_ok[i] = ok
             converged &= ok
             _store(out, G, tau, i, st)
+            if on_station is not None:
+                on_station(i, st.ux, st.uy, st.uz, st.k, st.eps)
             fluxes[i] = st.flux
             limited[i] = solver.limited
             floored[i] = solver.floored

@@ -79,6 +79,25 @@ def test_resume_from_checkpoint_gives_the_same_dataset(tmp_path, uninterrupted):
     assert "time_compile" not in t
 
 
+@pytest.mark.parametrize("changes", [{}, {"physics.partner_correlation": "cell", "numerics.max_passes": 8}])
+def test_passes_streamed_beside_the_gas_march_give_the_same_dataset(changes):
+    """A developing pipe: each pass tracked beside the gas march that feeds it (particles.stream)
+    gives the dataset of the passes tracked after it, bit for bit; the pass after the loop
+    converges, streamed with the early passes' parcel count, is tracked again."""
+    from eulag.output import coupled_dataset
+
+    case = small_case(**{"pipe.mode": "developing", "numerics.axial_cells": 12, **changes})
+    runs = []
+    for stream in (False, True):
+        loop = CouplingLoop(case, stream=stream)
+        loop.run()
+        runs.append((loop, coupled_dataset(loop)))
+    (plain, a), (streamed, b) = runs
+    assert plain.streamed == 0 and streamed.streamed >= len(streamed.history.residual) - 3
+    assert streamed.timings["lagrangian_after_gas"] < streamed.timings["lagrangian"]
+    data_vars_equal(a, b)
+
+
 def test_checkpoint_without_a_newer_history_record_resumes(tmp_path):
     """A checkpoint written before a history record was added resumes, the record NaN for its passes."""
     case = small_case(**{"numerics.max_passes": 3})
