@@ -113,6 +113,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numba
 import numpy as np
 
 import particles
@@ -801,10 +802,14 @@ class CouplingLoop:
     def _stream_next(self, m):
         """Pass m + 1, to be tracked beside the gas march of pass m that feeds it
         (particles.StreamedPass), or None where it is not streamed: a tracker other than the
-        local one, a one-way or periodic run, no pass m + 1.  Its parcel count is the one pass
-        m + 1 has unless pass m is the one after which the loop converges (then it is dropped)."""
+        local one, a one-way or periodic run, no pass m + 1, or fewer than two numba threads
+        (the streamed part of a pass takes a thread beside the march, which a run held to one
+        thread, e.g. one of several run side by side, does not have).  Its parcel count is the
+        one pass m + 1 has unless pass m is the one after which the loop converges (then it is
+        dropped)."""
         n = self.case.numerics
-        if not (self.stream_passes and self.two_way and self.mesh.mode == "developing"):
+        if not (self.stream_passes and self.two_way and self.mesh.mode == "developing"
+                and numba.get_num_threads() >= 2):
             return None
         if self.phase == "final":
             if self.final_left <= 1:

@@ -86,13 +86,22 @@ def test_passes_streamed_beside_the_gas_march_give_the_same_dataset(changes):
     converges, streamed with the early passes' parcel count, is tracked again."""
     from eulag.output import coupled_dataset
 
+    import numba
+
     case = small_case(**{"pipe.mode": "developing", "numerics.axial_cells": 12, **changes})
     runs = []
-    for stream in (False, True):
-        loop = CouplingLoop(case, stream=stream)
-        loop.run()
+    for stream, threads in ((False, 2), (True, 2), (True, 1)):
+        old = numba.get_num_threads()
+        try:
+            numba.set_num_threads(threads)
+            loop = CouplingLoop(case, stream=stream)
+            loop.run()
+        finally:
+            numba.set_num_threads(old)
         runs.append((loop, coupled_dataset(loop)))
-    (plain, a), (streamed, b) = runs
+    (plain, a), (streamed, b), (one_thread, c) = runs
+    assert one_thread.streamed == 0  # a run held to one thread keeps to it
+    data_vars_equal(a, c)
     assert plain.streamed == 0 and streamed.streamed >= len(streamed.history.residual) - 3
     assert streamed.timings["lagrangian_after_gas"] < streamed.timings["lagrangian"]
     data_vars_equal(a, b)
