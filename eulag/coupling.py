@@ -831,10 +831,11 @@ class CouplingLoop:
             return None
         stats = self.stats if self.physics.inter_particle_collisions else None
         key = stream.key
-        if key[0] == m and key[1] == parcels and key[2] is stats and stream.gas is self.gas:
-            sample = stream.result()
-            self.streamed += 1
-            return sample
+        if key[0] == m and key[1] == parcels and key[2] is stats:
+            sample = stream.result()  # raises what stopped it (e.g. a streamed gas unlike the solve's)
+            if stream.gas is self.gas:
+                self.streamed += 1
+                return sample
         stream.cancel()
         return None
 
@@ -846,10 +847,13 @@ class CouplingLoop:
     def _step(self):
         n = self.case.numerics
         if self.gas0 is None:
-            self.gas0, _, _ = self._solve_gas(None)
+            self._stream = self._stream_next(self.pass_index)  # the first pass, beside the single-phase march
+            self.gas0, _, _ = self._solve_gas(None, on_station=None if self._stream is None else self._stream.station)
             if not self.gas0.converged:
                 raise CouplingError("single-phase gas solve did not converge")
             self.gas = self.gas0
+            if self._stream is not None:
+                self._stream.finish(self.gas0)
         self.pass_index += 1
         m = self.pass_index
         if not self.two_way:
@@ -915,7 +919,6 @@ class CouplingLoop:
             self.alpha = alpha
             if self._stream is not None:
                 self._stream.finish(gas)
-                self._stream.gas = gas
             applied = self._gas_sources(relaxed)
             relaxed["epsilon"] = applied.applied_epsilon(gas.k, gas.epsilon)
             if "drag" in relaxed:  # the source as applied in the new gas field, which it now refers to

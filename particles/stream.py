@@ -73,6 +73,7 @@ class StreamedPass:
         self.spec = spec
         self.gas_props = gas_props
         self.key = None  # what the caller streams it for (compared before using the result)
+        self.gas = None  # the solve's field, once finish() has checked it
         self._sec = mesh.geometry()
         self._gas = {v: np.empty((nx, nr, nt)) for v in ("ux", "uy", "uz", "k", "eps")}
         tab = np.empty((nx, nr, nt, NT))
@@ -147,6 +148,7 @@ class StreamedPass:
             self._fail(RuntimeError("the streamed gas differs from the solve's field (stations "
                                     f"{self._stations} of {self.mesh.nx}); the streamed pass is void"))
             return
+        self.gas = gas
         with self._cond:
             self._done = True
             self._cond.notify_all()
