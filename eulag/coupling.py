@@ -119,7 +119,7 @@ import numpy as np
 import particles
 import rans
 from particles.layout import CS_APP, CS_ST, NCS
-from particles.stream import StreamedPass
+from particles.stream import StreamedPass, StreamOvershoot
 from collisions import InterparticleOptions, WallOptions
 from eulag.files import savez_atomic
 
@@ -825,24 +825,41 @@ class CouplingLoop:
         return stream
 
     def _streamed_sample(self, m, parcels):
-        """The sample of pass m if it was streamed with the inputs it has, else None."""
-        stream, self._stream = self._stream, None
+        """The sample of pass m if it was streamed with the inputs it has, else None (also when
+        a parcel reached fields the march had not delivered yet: the pass is then tracked again,
+        and the passes after it are not streamed)."""
+        stream = self._stream
         if stream is None:
             return None
         stats = self.stats if self.physics.inter_particle_collisions else None
         key = stream.key
         if key[0] == m and key[1] == parcels and key[2] is stats:
-            sample = stream.result()  # raises what stopped it (e.g. a streamed gas unlike the solve's)
-            if stream.gas is self.gas:
-                self.streamed += 1
-                return sample
-        stream.cancel()
+            try:
+                sample = stream.result()  # raises what stopped it (e.g. a streamed gas unlike the solve's)
+            except StreamOvershoot as err:
+                self._stream = None
+                self.stream_passes = False
+                self._tell(f"pass {m}: {err}; the pass is tracked again in the finished gas field, and the "
+                           "passes after it are tracked after their gas solves")
+                return None
+            self._stream = None
+            if stream.gas is not self.gas:  # finish() was given the field this pass runs in
+                raise RuntimeError(f"pass {m} was streamed beside the solve of another gas field")
+            self.streamed += 1
+            return sample
+        self._drop_stream(wait=True)
         return None
 
-    def _drop_stream(self):
+    def _drop_stream(self, wait=False):
+        """Cancel the streamed pass; ``wait``: until its thread has left the kernel (before
+        tracking in this thread, so that the two never run at once)."""
         if self._stream is not None:
-            self._stream.cancel()
+            self._stream.cancel(wait=wait)
             self._stream = None
+
+    def close(self):
+        """Stop a pass still being streamed (a loop left before it finished; ``run`` does this)."""
+        self._drop_stream(wait=True)
 
     def _step(self):
         n = self.case.numerics
@@ -906,7 +923,7 @@ class CouplingLoop:
                         on_station=None if self._stream is None else self._stream.station)
                     break
                 except rans.SolverDivergence as err:
-                    self._drop_stream()
+                    self._drop_stream(wait=True)
                     if alpha / 2 < MIN_RELAXATION:
                         raise CouplingError(f"pass {m}: gas solve with the particle sources failed even "
                                             f"with relaxation {alpha:g}: {err}") from None
@@ -1214,8 +1231,11 @@ class CouplingLoop:
                                 var=self.window[1] / n**2, cov=self.window[2] / n**2, passes=n)
 
     def run(self):
-        for _ in self:
-            pass
+        try:
+            for _ in self:
+                pass
+        finally:
+            self.close()
         return self
 
     # ------------------------------------------------------------------ checkpoint

@@ -555,6 +555,8 @@ def _build_trackers(options):
                 status = 0
                 susp[q, SU_ACTIVE] = 0.0
             else:
+                if susp.shape[0] > 0:  # a parcel that ends in window 0 is not resumed later
+                    susp[q, SU_ACTIVE] = 0.0
                 _key_rng(rng_inj, seed, pass_, pid, STREAM_INJECTION)
                 _key_rng(rng_disp, seed, pass_, pid, STREAM_DISPERSION)
                 _key_rng(rng_wall, seed, pass_, pid, STREAM_WALL)

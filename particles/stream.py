@@ -11,12 +11,16 @@ While the march runs the pass uses one numba thread, so the march keeps a core; 
 of them.
 
 What a parcel of window w reads: the table rows of the stations of the window, and of the one
-where its last step ends (a step moves a parcel at most about half a cell axially, so it ends in
-the first cell of window w + 1), each row also taking the gas of its two neighbours (axial
-central differences).  The pass waits for the table rows up to three stations beyond the
-window (``ROW_MARGIN``) and checks after every range of windows that no suspended parcel
-stands where it would have read a row not yet built; a parcel that did stops the pass with an
-error instead of a wrong result.
+where its last step ends, each row also taking the gas of its two neighbours (axial central
+differences).  With the default step rule a step is limited by the axial cell-crossing time at
+its start, so that station is nearly always the first of window w + 1; the pass waits for the
+table rows up to ``ROW_MARGIN`` stations beyond the window.  Nothing bounds a step absolutely
+(a parcel can speed up during a step; the paper's step rule has no crossing limit), so the rows
+not yet built hold NaN, and after every call the pass checks that no parcel read one: none
+suspended or stopped where its fields take such a row, none lost, and, at the end, every sum
+and parcel state finite (a NaN field read leaves a NaN in the parcel's state or sums).  A pass
+that fails the check raises :class:`StreamOvershoot`: its caller tracks it again in the
+finished field (the coupling loop then stops streaming).
 
 The result is :func:`particles.tracking.track`'s in the finished gas field, bit for bit, for
 any thread count: every batch performs the same operations in the same order whatever the
@@ -35,11 +39,11 @@ import numpy as np
 
 from .fields import NT, FieldTable, table_problem, table_rows
 from .kernel import NSTATE, NSUSP, SU_ACTIVE, SU_POS, make_window_tracker, fold_batches
-from .layout import CS_ST, NACC, P_WINDOW
+from .layout import CS_ST, NACC, P_WINDOW, S_LOST, S_STUCK
 from .tracking import (TrackSettings, _check_variant, make_sample, prepare_pass, run_superbatch,
                        stokes_of_cells)
 
-__all__ = ["StreamedPass", "ROW_MARGIN", "StreamCancelled"]
+__all__ = ["StreamedPass", "ROW_MARGIN", "StreamCancelled", "StreamOvershoot"]
 
 #: table rows beyond a window's last station that must be built before the window is swept
 ROW_MARGIN = 3
@@ -50,6 +54,11 @@ WINDOWS_PER_CALL = 4
 
 class StreamCancelled(Exception):
     """The streamed pass was cancelled (its gas solve failed or its inputs changed)."""
+
+
+class StreamOvershoot(RuntimeError):
+    """A parcel of the streamed pass reached fields the march had not delivered when it got
+    there: the pass must be tracked again in the finished field."""
 
 
 class StreamedPass:
@@ -76,8 +85,8 @@ class StreamedPass:
         self.gas = None  # the solve's field, once finish() has checked it
         self._sec = mesh.geometry()
         self._gas = {v: np.empty((nx, nr, nt)) for v in ("ux", "uy", "uz", "k", "eps")}
-        tab = np.empty((nx, nr, nt, NT))
-        axis = np.empty((nx, NT))
+        tab = np.full((nx, nr, nt, NT), np.nan)  # NaN until built: a read of it leaves a trace
+        axis = np.full((nx, NT), np.nan)
         self.table = FieldTable(values=tab, axis=axis, x_centres=np.asarray(mesh.x, dtype=np.float64).copy(),
                                 x_edges=np.asarray(mesh.x_edges, dtype=np.float64).copy(),
                                 r_centres=np.asarray(mesh.r, dtype=np.float64).copy(),
@@ -87,6 +96,8 @@ class StreamedPass:
         if stats is not None:
             stats = np.array(stats, dtype=np.float64, copy=True)
         self._partner_stokes = bool(partner_stokes and stats is not None)
+        if self._partner_stokes:
+            stats[:, CS_ST] = np.nan  # built with the table rows
         self.inputs = prepare_pass(mesh, None, spec, physics, parcels=parcels, seed=seed,
                                    pass_index=pass_index, stats=stats, settings=settings,
                                    table=self.table, gas_props=gas_props)
@@ -95,6 +106,7 @@ class StreamedPass:
         self._stations = 0  # gas stations received
         self._rows = 0  # table rows (and statistics rows) built
         self._done = False  # the march is complete and checked
+        self._finished = False  # finish() was called
         self._cancelled = False
         self._problem = ""  # why the streamed gas cannot be tracked in
         self._error = None
@@ -141,6 +153,7 @@ class StreamedPass:
 
     def finish(self, gas):
         """The march is complete and gave ``gas``: check that it is what was streamed."""
+        self._finished = True
         same = self._stations == self.mesh.nx and all(
             np.array_equal(self._gas[a], np.asarray(getattr(gas, b)).reshape(self.mesh.shape))
             for a, b in (("ux", "ux"), ("uy", "uy"), ("uz", "uz"), ("k", "k"), ("eps", "epsilon")))
@@ -171,7 +184,11 @@ class StreamedPass:
 
     # ------------------------------------------------------------------ the particle side
     def result(self):
-        """The pass's :class:`~particles.tracking.Sample` (waits for it); raises what stopped it."""
+        """The pass's :class:`~particles.tracking.Sample` (waits for it; None if cancelled);
+        raises what stopped it (:class:`StreamOvershoot`: track the pass again).  Call
+        :meth:`finish` or :meth:`cancel` first."""
+        if not (self._finished or self._cancelled):
+            raise RuntimeError("StreamedPass.result() before finish() or cancel(): it would wait for ever")
         self._thread.join()
         if self._error is not None:
             raise self._error
@@ -199,7 +216,7 @@ class StreamedPass:
         except StreamCancelled:
             pass
         except BaseException as err:  # handed to result()
-            self._error = err
+            self._fail(err)
 
     def _track(self):
         inputs = self.inputs
@@ -219,7 +236,7 @@ class StreamedPass:
         nbat = len(starts)
         npar = int(counts.sum())
         scratch = np.zeros((nbat, inputs.size))
-        states = np.empty((npar, NSTATE))
+        states = np.full((npar, NSTATE), np.nan)  # a row is written when its parcel ends
         susp = np.zeros((npar, NSUSP))
         totals = np.zeros(inputs.size)
         squares = np.zeros(inputs.size)
@@ -238,18 +255,17 @@ class StreamedPass:
             track_windows(starts, counts, inputs.seed, inputs.pass_index, t.x_edges, t.r_edges, t.r_centres,
                           inputs.nt, t.length, t.radius, t.nu, t.x_centres, t.values, t.axis, inputs.stats,
                           inputs.prm, scratch, states, susp, w, w1)
+            if rows < nx:
+                self._check_reach(susp, states, t.x_centres[rows - 1], w1, rows)
             if not done:
                 self.windows_beside_march = w1
-            if w1 < nwin and rows < nx:
-                active = susp[:, SU_ACTIVE] != 0.0
-                if active.any() and susp[active, SU_POS].max() >= t.x_centres[rows - 1]:
-                    raise RuntimeError(
-                        f"a parcel suspended after window {w1 - 1} stands at x = "
-                        f"{susp[active, SU_POS].max():.6g} m, where the fields read table rows beyond the "
-                        f"{rows} built; the streamed pass's margin (ROW_MARGIN = {ROW_MARGIN}) is too small")
             w = w1
         fold_batches(scratch, nbat, totals, squares, cross, inputs.ncell)
         _check_variant(totals, nbat, track_windows.eulag_variant)
+        if not (np.isfinite(totals).all() and np.isfinite(states).all()):
+            raise StreamOvershoot("the streamed pass's first super-batch has non-finite sums or parcel "
+                                  "states: a parcel read fields the march had not delivered yet (or a parcel "
+                                  "was lost)")
         del scratch, susp
         if not full:
             self._wait_rows(nx)
@@ -269,3 +285,21 @@ class StreamedPass:
                 raise StreamCancelled()
         return make_sample(self.mesh, self.spec, inputs, totals, squares, cross)
 
+
+
+    @staticmethod
+    def _check_reach(susp, states, x_limit, w1, rows):
+        """Raise StreamOvershoot if a parcel of the call that ended at window w1 read a table row
+        not yet built (``rows`` built; a point at x reads the rows of the station centres around
+        it, so x must stay below the centre of the last one built, ``x_limit``): a parcel
+        suspended or stopped beyond it, or one lost."""
+        status = states[:, 14]
+        if np.any(status == S_LOST):
+            raise StreamOvershoot(f"a parcel of the streamed pass was lost before window {w1}")
+        active = susp[:, SU_ACTIVE] != 0.0
+        stopped = status == S_STUCK
+        x = np.concatenate((susp[active, SU_POS], states[stopped, 0]))
+        if x.size and x.max() >= x_limit:
+            raise StreamOvershoot(
+                f"a parcel of the streamed pass stood at x = {x.max():.6g} m after window {w1 - 1}, "
+                f"where its fields take table rows beyond the {rows} the march had delivered")

@@ -107,6 +107,32 @@ def test_passes_streamed_beside_the_gas_march_give_the_same_dataset(changes):
     data_vars_equal(a, b)
 
 
+def test_a_void_streamed_pass_is_tracked_again_and_streaming_stops(monkeypatch):
+    """A streamed pass whose parcels reached rows the march had not built (forced here with a
+    negative margin) is tracked again in the finished field: the dataset is the one of the
+    passes tracked after their gas solves, and the run says so."""
+    import time
+
+    import particles.stream as stream_mod
+    from eulag.output import coupled_dataset
+
+    case = small_case(**{"pipe.mode": "developing", "numerics.axial_cells": 12, "numerics.max_passes": 4})
+    plain = CouplingLoop(case, stream=False).run()
+    monkeypatch.setattr(stream_mod, "ROW_MARGIN", -4)
+    station = stream_mod.StreamedPass.station
+
+    def slow_station(self, *args):  # a march slower than the particles, as in the scenes
+        time.sleep(0.02)
+        station(self, *args)
+
+    monkeypatch.setattr(stream_mod.StreamedPass, "station", slow_station)
+    told = []
+    loop = CouplingLoop(case, stream=True, notify=told.append).run()
+    assert loop.streamed == 0 and not loop.stream_passes
+    assert any("tracked again in the finished gas field" in t for t in told), told
+    data_vars_equal(coupled_dataset(plain), coupled_dataset(loop))
+
+
 def test_checkpoint_without_a_newer_history_record_resumes(tmp_path):
     """A checkpoint written before a history record was added resumes, the record NaN for its passes."""
     case = small_case(**{"numerics.max_passes": 3})

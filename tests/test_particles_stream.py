@@ -126,3 +126,34 @@ def test_windows_are_swept_before_the_march_ends(coupled):
     want = track(mesh, gas0, BASE, PhysicsOptions(), parcels=400, seed=5, pass_index=1, stats=stats,
                  settings=settings)
     assert np.array_equal(stream.result().total, want.total)
+
+
+def test_a_parcel_ahead_of_the_march_voids_the_pass(coupled, monkeypatch):
+    """With windows swept before the rows their parcels read exist (a negative margin), the
+    parcels meet the NaN of the rows not yet built and the pass says so instead of summing them."""
+    import time
+
+    import particles.stream as stream_mod
+
+    mesh, gas0, stats, _ = coupled
+    monkeypatch.setattr(stream_mod, "ROW_MARGIN", -3)
+    stream = StreamedPass(mesh, AIR, BASE, PhysicsOptions(), parcels=200, seed=5, pass_index=1, stats=stats,
+                          settings=TrackSettings(window_stations=4, batch_size=50))
+    for i in range(mesh.nx // 2):
+        stream.station(i, gas0.ux[i], gas0.uy[i], gas0.uz[i], gas0.k[i], gas0.epsilon[i])
+    t0 = time.perf_counter()
+    while stream._thread.is_alive() and time.perf_counter() - t0 < 60:
+        time.sleep(0.01)
+    for i in range(mesh.nx // 2, mesh.nx):
+        stream.station(i, gas0.ux[i], gas0.uy[i], gas0.uz[i], gas0.k[i], gas0.epsilon[i])
+    stream.finish(gas0)
+    with pytest.raises(stream_mod.StreamOvershoot, match="was lost|march had delivered|non-finite"):
+        stream.result()
+
+
+def test_result_before_finish_or_cancel_is_refused(coupled):
+    mesh, _, stats, _ = coupled
+    stream = StreamedPass(mesh, AIR, BASE, PhysicsOptions(), parcels=50, seed=5, pass_index=1, stats=stats)
+    with pytest.raises(RuntimeError, match="before finish"):
+        stream.result()
+    stream.cancel(wait=True)
