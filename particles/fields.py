@@ -86,13 +86,19 @@ class FieldTable:
         problem = table_problem(tab, k, eps)
         if problem:
             raise ValueError(problem)
-        return cls(values=tab, axis=axis,
+        return cls.on_mesh(mesh, gas.gas, tab, axis)
+
+    @classmethod
+    def on_mesh(cls, mesh, gas_props, values, axis):
+        """The table of ``values`` (nx, nr, nt, NT) and ``axis`` (nx, NT) on ``mesh`` for the gas
+        properties ``gas_props`` (``rans.GasProperties``); the arrays are used, not copied."""
+        return cls(values=values, axis=axis,
                    x_centres=np.asarray(mesh.x, dtype=np.float64).copy(),
                    x_edges=np.asarray(mesh.x_edges, dtype=np.float64).copy(),
                    r_centres=np.asarray(mesh.r, dtype=np.float64).copy(),
                    r_edges=np.asarray(mesh.r_edges, dtype=np.float64).copy(),
-                   nt=int(nt), length=float(mesh.length), radius=float(mesh.radius),
-                   rho=float(gas.gas.density), nu=float(gas.gas.kinematic_viscosity))
+                   nt=int(mesh.nt), length=float(mesh.length), radius=float(mesh.radius),
+                   rho=float(gas_props.density), nu=float(gas_props.kinematic_viscosity))
 
     @property
     def shape(self):

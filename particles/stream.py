@@ -85,14 +85,9 @@ class StreamedPass:
         self.gas = None  # the solve's field, once finish() has checked it
         self._sec = mesh.geometry()
         self._gas = {v: np.empty((nx, nr, nt)) for v in ("ux", "uy", "uz", "k", "eps")}
-        tab = np.full((nx, nr, nt, NT), np.nan)  # NaN until built: a read of it leaves a trace
-        axis = np.full((nx, NT), np.nan)
-        self.table = FieldTable(values=tab, axis=axis, x_centres=np.asarray(mesh.x, dtype=np.float64).copy(),
-                                x_edges=np.asarray(mesh.x_edges, dtype=np.float64).copy(),
-                                r_centres=np.asarray(mesh.r, dtype=np.float64).copy(),
-                                r_edges=np.asarray(mesh.r_edges, dtype=np.float64).copy(),
-                                nt=int(nt), length=float(mesh.length), radius=float(mesh.radius),
-                                rho=float(gas_props.density), nu=float(gas_props.kinematic_viscosity))
+        # NaN until built: a read of a row not yet built leaves a trace
+        self.table = FieldTable.on_mesh(mesh, gas_props, np.full((nx, nr, nt, NT), np.nan),
+                                        np.full((nx, NT), np.nan))
         if stats is not None:
             stats = np.array(stats, dtype=np.float64, copy=True)
         self._partner_stokes = bool(partner_stokes and stats is not None)
