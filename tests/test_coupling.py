@@ -107,6 +107,31 @@ def test_passes_streamed_beside_the_gas_march_give_the_same_dataset(changes):
     data_vars_equal(a, b)
 
 
+def test_a_run_stopped_while_a_pass_is_streamed_resumes_to_the_uninterrupted_dataset(tmp_path):
+    """A developing run ended (killed, or its loop left) while the next pass is being tracked
+    beside the march: the checkpoint of the last complete pass carries nothing of the pass in
+    flight, and the resumed run gives the uninterrupted run's dataset, bit for bit."""
+    import numba
+
+    from eulag.output import coupled_dataset
+
+    if numba.get_num_threads() < 2:
+        pytest.skip("streaming needs two numba threads")
+    case = small_case(**{"pipe.mode": "developing", "numerics.axial_cells": 12})
+    ref = CouplingLoop(case, stream=True).run()
+    assert ref.streamed > 0
+    ckpt = tmp_path / "out.nc.checkpoint"
+    loop = CouplingLoop(case, checkpoint=ckpt, stream=True)
+    loop.step()
+    loop.step()
+    assert loop._stream is not None  # pass 3 is being tracked beside pass 2's march
+    loop.close()  # the run ends here; the pass in flight is lost
+    told = []
+    resumed = run(case, tmp_path / "out.nc", resume=True, notify=told.append)
+    assert told[0] == f"resuming from {ckpt} after pass 2 (early passes)", told
+    data_vars_equal(coupled_dataset(ref), resumed)
+
+
 def test_a_void_streamed_pass_is_tracked_again_and_streaming_stops(monkeypatch):
     """A streamed pass whose parcels reached rows the march had not built (forced here with a
     negative margin) is tracked again in the finished field: the dataset is the one of the
