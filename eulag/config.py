@@ -616,8 +616,9 @@ class NumericsConfig(_Section):
     average_passes : int
         Passes averaged for the reported particle statistics, in [1, max_passes] (default 3).
     step_rule : str
-        Particle time step: ``"default"`` (0.5 min(T_L, cell crossing, 0.1/f_coll)) or
-        ``"paper"`` (0.5 min(tau_p, T_L, tau_coll)).
+        Particle time step: ``"default"`` (0.5 min(T_L, cell crossing, 0.1/f_coll)),
+        ``"paper"`` (0.5 min(tau_p, T_L, tau_coll)) or ``"kolmogorov"`` (the default rule with
+        T_L bounded below by the Kolmogorov time sqrt(nu/eps), where the turbulence has died out).
     relaxation : float
         Under-relaxation factor of the particle sources [1], in [0.05, 1] (default 0.3).
     max_passes : int
@@ -706,7 +707,7 @@ class NumericsConfig(_Section):
     average_passes: int = _param(INTEGER, "passes averaged, <= numerics.max_passes", default=3,
                                  ge=1)
     step_rule: str = _param(STRING, "particle time-step rule", default="default",
-                            choices=("default", "paper"))
+                            choices=("default", "paper", "kolmogorov"))
     relaxation: float = _param(NUMBER, "source under-relaxation factor", default=0.3, ge=0.05,
                                le=1.0)
     max_passes: int = _param(INTEGER, "maximum coupling passes", default=40, ge=1, le=10_000)

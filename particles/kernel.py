@@ -12,7 +12,8 @@ Per particle step:
 2. time step Δt = c · min(T_L, cell-crossing time, 0.1/f_coll) (``step_rule = "default"``;
    the crossing time uses the axial cell length and the *ring thickness*, never the arc
    length, so the small sectors at the axis do not force small steps) or
-   c · min(τ_p, T_L, 1/f_coll) (``"paper"``);
+   c · min(τ_p, T_L, 1/f_coll) (``"paper"``), or the default with max(T_L, √(ν/ε)) in place of
+   T_L (``"kolmogorov"``);
 3. force coefficients frozen over the step: drag (Schiller–Naumann), reduced gravity g′,
    Saffman–Mei and Magnus lift.  Both lifts are linear in the slip, a_L = b × (u_F − u),
    so the velocity and position are advanced with the exact solution of
@@ -115,7 +116,10 @@ class PhysicsOptions:
         Lagrangian correlation alone: the mean-pressure-gradient drift of the fluid seen acting
         over the step, as in Minier & Peirano 2001); the two agree for tracers.
     magnus_model : "lun-liu" | "oesterle-bui-dinh".
-    step_rule : "default" | "paper".
+    step_rule : "default" | "paper" | "kolmogorov" (the default rule with the T_L of the step
+        bounded below by the Kolmogorov time sqrt(ν/ε): it binds where k²/(νε) < 39, where the
+        particles' sink or the inlet's decay has left a turbulence whose T_L = C_T σ²/ε is far
+        below any eddy's time; the Langevin model keeps its T_L).
     partner_correlation : "particle" | "cell" — where the Stokes number St = τ_p/T_L of the
         fictitious partner's correlation R(St) is taken: at the real particle (its step's τ_p,
         T_L of the gas at its position: in the wall cell ε follows the wall function, so R
@@ -162,8 +166,8 @@ class PhysicsOptions:
             raise ValueError(f"magnus_model = {self.magnus_model!r}: allowed lun-liu, oesterle-bui-dinh")
         if self.drift_form not in ("particle", "lagrangian"):
             raise ValueError(f"drift_form = {self.drift_form!r}: allowed particle, lagrangian")
-        if self.step_rule not in ("default", "paper"):
-            raise ValueError(f"step_rule = {self.step_rule!r}: allowed default, paper")
+        if self.step_rule not in ("default", "paper", "kolmogorov"):
+            raise ValueError(f"step_rule = {self.step_rule!r}: allowed default, paper, kolmogorov")
         if self.partner_correlation not in ("particle", "cell"):
             raise ValueError(f"partner_correlation = {self.partner_correlation!r}: allowed particle, cell")
         if self.partner_momentum not in ("discarded", "returned"):
@@ -469,6 +473,7 @@ def _build_trackers(options):
     drift_lagrangian = options.drift_form == "lagrangian"
     pp = options.inter_particle_collisions
     paper_rule = options.step_rule == "paper"
+    kolmogorov_rule = options.step_rule == "kolmogorov"
     cell_corr = options.partner_correlation == "cell"
     returned = pp and options.partner_momentum == "returned"
     rotation = options.rotation
@@ -625,6 +630,8 @@ def _build_trackers(options):
                 else:
                     vperp = math.sqrt(vel[1] * vel[1] + vel[2] * vel[2])
                     lim = t_l
+                    if kolmogorov_rule:  # no eddy turns over faster than the Kolmogorov time
+                        lim = max(t_l, math.sqrt(prm[P_MU] / (prm[P_RHO_F] * eps)))
                     if abs(vel[0]) > 0.0:
                         lim = min(lim, dxc / abs(vel[0]))
                     if vperp > 0.0:
