@@ -107,13 +107,17 @@ def test_passes_streamed_beside_the_gas_march_give_the_same_dataset(changes):
     data_vars_equal(a, b)
 
 
-def test_a_run_stopped_while_a_pass_is_streamed_resumes_to_the_uninterrupted_dataset(tmp_path):
-    """A developing run ended (killed, or its loop left) while the next pass is being tracked
-    beside the march: the checkpoint of the last complete pass carries nothing of the pass in
-    flight, and the resumed run gives the uninterrupted run's dataset, bit for bit."""
+@pytest.mark.parametrize("stop", ["after pass 2", "in pass 2's march"])
+def test_a_run_stopped_while_a_pass_is_streamed_resumes_to_the_uninterrupted_dataset(tmp_path, monkeypatch, stop):
+    """A developing run ended (killed, or its loop left) with the next pass streamed beside the
+    march: after a pass, or in the middle of a march (an interrupt from the station callback,
+    with the pass being streamed half tracked).  The checkpoint of the last complete pass
+    carries nothing of the streamed pass, and the resumed run gives the uninterrupted run's
+    dataset, bit for bit."""
     import numba
 
     from eulag.output import coupled_dataset
+    from particles.stream import StreamedPass
 
     if numba.get_num_threads() < 2:
         pytest.skip("streaming needs two numba threads")
@@ -123,12 +127,28 @@ def test_a_run_stopped_while_a_pass_is_streamed_resumes_to_the_uninterrupted_dat
     ckpt = tmp_path / "out.nc.checkpoint"
     loop = CouplingLoop(case, checkpoint=ckpt, stream=True)
     loop.step()
-    loop.step()
-    assert loop._stream is not None  # pass 3 is being tracked beside pass 2's march
-    loop.close()  # the run ends here; the pass in flight is lost
+    if stop == "after pass 2":
+        loop.step()
+        assert loop._stream is not None  # pass 3 was streamed beside pass 2's march (it may be done)
+        loop.close()  # the run ends here; the streamed pass is lost
+        done = 2
+    else:
+        station = StreamedPass.station
+
+        def interrupted(self, i, *args):
+            station(self, i, *args)
+            if i == 6:
+                raise KeyboardInterrupt
+
+        monkeypatch.setattr(StreamedPass, "station", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            loop.step()  # stopped in pass 2's gas march, pass 3 streamed beside it
+        monkeypatch.undo()
+        loop.close()
+        done = 1
     told = []
     resumed = run(case, tmp_path / "out.nc", resume=True, notify=told.append)
-    assert told[0] == f"resuming from {ckpt} after pass 2 (early passes)", told
+    assert told[0] == f"resuming from {ckpt} after pass {done} (early passes)", told
     data_vars_equal(coupled_dataset(ref), resumed)
 
 

@@ -443,16 +443,17 @@ def test_loop_flags_keep_the_finiteness_checks():
 def test_kolmogorov_step_rule_acts_only_where_the_turbulence_has_died_out():
     """``step_rule = "kolmogorov"`` bounds the T_L of the step below by the Kolmogorov time
     √(ν/ε), which exceeds T_L = C_T (2k/3)/ε only where k²/(νε) < 39.  In the developed pipe's
-    live turbulence (k²/(νε) ≥ 132 everywhere) the pass is the default rule's, bit for bit.  With
-    k a millionth of it (a turbulence put out, as the particles' sink does in the dense scenes)
-    the default rule's steps shrink with T_L and its parcels hit the step cap, while the bounded
-    rule takes the steps of a pass without turbulent dispersion and gives its sources and
-    concentration within their standard errors."""
+    live turbulence the pass is the default rule's, bit for bit.  With k a hundredth of it (a
+    turbulence put out, as the particles' sink does in the dense scenes; k²/(νε) < 39) the
+    default rule's steps shrink with T_L, the bounded rule takes far fewer, and the two passes
+    (independent seeds) agree cell by cell within their standard errors."""
     import dataclasses
 
     mesh, gas = periodic_pipe(10, 20)
     nu = AIR.viscosity / AIR.density
-    assert (gas.k ** 2 / (nu * gas.epsilon)).min() > 39.0
+    # cell values; in the wall cell the kernel's log-law epsilon is up to ~3 times the cell's,
+    # so the particles see k^2/(nu eps) above 39 only if the cells are above ~117
+    assert (gas.k ** 2 / (nu * gas.epsilon)).min() > 117.0
     one_way = PhysicsOptions(inter_particle_collisions=False)
     kolmo = dataclasses.replace(one_way, step_rule="kolmogorov")
     a = track(mesh, gas, BASE, one_way, parcels=2000, seed=3)
@@ -463,12 +464,14 @@ def test_kolmogorov_step_rule_acts_only_where_the_turbulence_has_died_out():
         np.testing.assert_array_equal(a.momentum_source(c), b.momentum_source(c))
     np.testing.assert_array_equal(a.k_source, b.k_source)
 
-    dead = dataclasses.replace(gas, k=gas.k * 1e-6)
-    d = track(mesh, dead, BASE, kolmo, parcels=2000, seed=3)
-    ref = track(mesh, dead, BASE, dataclasses.replace(kolmo, langevin=False), parcels=2000, seed=3)
-    assert d.visits.sum() == pytest.approx(ref.visits.sum(), rel=0.05)
-    for f, e in ((lambda s: s.concentration, lambda s: s.concentration_stderr),
-                 (lambda s: s.momentum_source(0), lambda s: s.momentum_source_stderr(0))):
-        va, vb = (f(d) * d.volume).sum(), (f(ref) * ref.volume).sum()
-        se = math.sqrt(((e(d) * d.volume) ** 2).sum() + ((e(ref) * ref.volume) ** 2).sum())
-        assert abs(va - vb) < 4.0 * se, (va, vb, se)
+    dead = dataclasses.replace(gas, k=gas.k * 1e-2)
+    assert (dead.k ** 2 / (nu * dead.epsilon)).max() < 39.0
+    d = track(mesh, dead, BASE, one_way, parcels=400, seed=3)
+    q = track(mesh, dead, BASE, kolmo, parcels=400, seed=4)
+    assert q.visits.sum() < 0.2 * d.visits.sum(), (q.visits.sum(), d.visits.sum())
+    z = (q.concentration - d.concentration) / np.hypot(q.concentration_stderr, d.concentration_stderr)
+    assert np.sqrt(np.mean(z[np.isfinite(z)] ** 2)) < 1.5
+    va, vb = (q.momentum_source(0) * q.volume).sum(), (d.momentum_source(0) * d.volume).sum()
+    se = math.hypot(np.sqrt(((q.momentum_source_stderr(0) * q.volume) ** 2).sum()),
+                    np.sqrt(((d.momentum_source_stderr(0) * d.volume) ** 2).sum()))
+    assert abs(va - vb) < 4.0 * se, (va, vb, se)

@@ -26,9 +26,9 @@ for cand in ("CS_FREQ", "CS_FC", "CS_F"):
     if hasattr(L, cand):
         freq = st[:, getattr(L, cand)].reshape(loop.mesh.shape); print("freq column", cand); break
 x = np.asarray(loop.mesh.x)
-print(" x [m]   segs/parcel/station   TL=0.24k/eps median [ms]   k axis   0.1/f median [ms]")
+print(" x [m]   segs/parcel/station   T_L=0.24(2k/3)/eps median [ms]   k axis   0.1/f median [ms]")
 for i in list(range(0, 40, 4)) + list(range(40, 400, 40)):
-    tl = np.median(0.24 * k[i] / e[i]) * 1e3
+    tl = np.median(0.24 * (2.0 * k[i] / 3.0) / e[i]) * 1e3  # T_L = C_T (2k/3)/eps, as the kernel
     fc = (np.median(0.1 / np.maximum(freq[i], 1e-9)) * 1e3) if freq is not None else float('nan')
     print(f"{x[i]:6.3f} {v[i]:10.1f} {tl:12.2f} {k[i,0,0]:10.3f} {fc:12.3f}")
 print("total segments per parcel", v.sum(), "first 76 stations", v[:76].sum())
