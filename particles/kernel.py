@@ -630,7 +630,9 @@ def _build_trackers(options):
                 else:
                     vperp = math.sqrt(vel[1] * vel[1] + vel[2] * vel[2])
                     lim = t_l
-                    if kolmogorov_rule:  # no eddy turns over faster than the Kolmogorov time
+                    if kolmogorov_rule:  # no eddy turns over faster than τ_η = √(ν/ε) [s] (Pope 2000, eq. 6.1)
+                        # μ/(ρ_F ε), not nu/eps: under arcp a division by eps alone would share its
+                        # reciprocal with T_L's and change T_L by round-off in live turbulence too
                         lim = max(t_l, math.sqrt(prm[P_MU] / (prm[P_RHO_F] * eps)))
                     if abs(vel[0]) > 0.0:
                         lim = min(lim, dxc / abs(vel[0]))
