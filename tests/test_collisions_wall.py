@@ -646,3 +646,61 @@ def test_million_random_impacts_stay_inside_and_finite():
     radii and overshoots: none outside the pipe, none NaN, none into the wall, none gaining energy."""
     bad_pos, bad_nan, bad_dir, bad_energy = _make_mass_impacts()(1_000_000, 17)
     assert (bad_pos, bad_nan, bad_dir, bad_energy) == (0, 0, 0, 0)
+
+
+# ---------------------------------------------------------------------------------------------
+# isotropy of the wall model about the pipe axis
+# ---------------------------------------------------------------------------------------------
+
+def _local(v, pos):
+    """Components of v in the impact point's frame (axial, inward normal, azimuthal n0 × e_x)."""
+    n0 = inward_normal(pos)
+    ex = np.array([1.0, 0.0, 0.0])
+    return np.array([v @ ex, v @ n0, v @ np.cross(n0, ex)])
+
+
+@pytest.mark.parametrize("opt", [cw.WallOptions(), cw.WallOptions(shadow_effect="rejection", impact_angle="nominal",
+                                                                  lateral_roughness=False)])
+def test_an_impact_turned_about_the_pipe_axis_rebounds_turned(opt):
+    """The same impact (same random stream) at any azimuth of the wall gives the same rebound in
+    the impact point's frame, to round-off: nothing in the wall model prefers the bottom, the top
+    or a side of the pipe (the gravity acts only between collisions)."""
+    kernel = cw.make_wall_collision(opt)
+    R, r_frac, dgamma = 0.01525, 100e-6 / 0.01525, 10.0 * DEG
+    v_min = cw.minimum_bounce_speed(200e-6)
+    for seed in range(60):
+        alpha, psi, spin = 0.5 + 0.3 * seed, 0.05 * (seed % 7 - 3), 0.2 * (seed % 5 - 2)
+        out = []
+        for theta in (math.pi, 0.0, 0.5 * math.pi, 0.7, -2.2):
+            pos, vel, omega, r_p = impact_state(R, r_frac, theta, 1e-4, alpha, psi, 10.0, spin, (0.3, 1.0, -0.5))
+            # the spin given in the local frame, so that the impacts are the same one turned
+            n0 = inward_normal(pos)
+            ex = np.array([1.0, 0.0, 0.0])
+            omega = spin / r_p * (0.3 * ex + 1.0 * n0 - 0.5 * np.cross(n0, ex)) / math.sqrt(1.34)
+            status, p, v, w, uf, dv, _ = run_kernel(kernel, pos, vel, omega, np.zeros(3), r_p, R, dgamma, v_min,
+                                                    seed)
+            out.append(np.concatenate([[status], _local(v, p), _local(w, p) * r_p]))
+        out = np.array(out)
+        assert np.all(out[:, 0] == out[0, 0])
+        assert np.abs(out[:, 1:] - out[0, 1:]).max() < 1e-9 * 10.0, (seed, out)
+
+
+def test_an_impact_mirrored_in_its_plane_rebounds_mirrored_on_average():
+    """An impact with the lateral (azimuthal) velocity reversed rebounds with the lateral velocity
+    and the spin's normal component reversed, and the axial and normal ones the same, on average
+    over the roughness (the lateral roughness angle is drawn per impact, not mirrored)."""
+    kernel = cw.make_wall_collision(cw.WallOptions())
+    R, r_frac, dgamma = 0.01525, 100e-6 / 0.01525, 5.0 * DEG
+    v_min = cw.minimum_bounce_speed(200e-6)
+    res = {1: [], -1: []}
+    for sign in (1, -1):
+        for seed in range(3000):
+            pos, vel, omega, r_p = impact_state(R, r_frac, math.pi, 1e-4, 3.0, sign * 0.4, 10.0, 0.0, (1.0, 0.0, 0.0))
+            _, p, v, w, *_ = run_kernel(kernel, pos, vel, omega, np.zeros(3), r_p, R, dgamma, v_min, seed)
+            res[sign].append(np.concatenate([_local(v, p), _local(w, p) * r_p]))
+    a, b = np.array(res[1]), np.array(res[-1])
+    parity = np.array([1, 1, -1, -1, -1, 1])  # velocity: azimuthal odd; spin (axial vector): axial, normal odd
+    diff = a.mean(axis=0) - parity * b.mean(axis=0)
+    se = np.sqrt(a.var(axis=0) / len(a) + b.var(axis=0) / len(b))
+    assert np.all(np.abs(diff) < 4.0 * se + 1e-12), (diff, se)
+    assert abs(a[:, 2].mean()) > 10.0 * se[2]  # the lateral velocity is there to be mirrored

@@ -285,6 +285,34 @@ def test_drag_coefficient_is_the_momentum_source_per_unit_slip(u_inject):
         np.testing.assert_allclose(s.momentum_source(0)[inner], -beta * slip, rtol=1e-3)  # the gas loses it
 
 
+@pytest.mark.parametrize("component", [1, 2])
+def test_a_cross_flow_gives_the_gas_the_in_plane_source_of_its_own_component(component):
+    """Drag only in a uniform gas with a cross flow of 1 m/s in y (component 1) or z (2) besides
+    10 m/s axially: per cell the source on the gas in that component is −β (U_c − ū_p,c), the
+    gas losing what it gives the particles, and the other in-plane component has none. A sign
+    or a y/z swap between the kernel's accumulators and the gas's components fails here."""
+    from .particle_support import uniform_field
+
+    drag_only = PhysicsOptions(saffman_mei_lift=False, magnus_lift=False, rotation=False, gravity=False,
+                               inter_particle_collisions=False, langevin=False, drift_correction=False)
+    mesh = PipeMesh.build(0.0305, 0.1, mode="developing", axial_cells=5, radial_cells=6, azimuthal_cells=8,
+                          bulk_velocity=10.0)
+    gas = uniform_field(mesh, ux=10.0, k=1e-24, epsilon=1e-24)
+    (gas.uy if component == 1 else gas.uz)[:] = 1.0
+    s = track(mesh, gas, ParticleSpec(50e-6, 1020.0, 1.0, 10.0, 1e-9), drag_only, parcels=2000, seed=3)
+    inner = (slice(1, -1), slice(0, -1))  # past the first station, off the wall ring
+    c = s.concentration[inner]
+    full = c > 0.5 * c.mean()  # the cells the particles have not left
+    assert full.sum() > 0.8 * full.size
+    beta = s.drag_coefficient[inner][full]
+    slip = 1.0 - s.velocity(component)[inner][full]
+    assert slip.min() > 0.2  # the particles have not caught up with the cross flow
+    np.testing.assert_allclose(s.momentum_source(component)[inner][full], -beta * slip, rtol=1e-2)
+    other = 3 - component
+    assert (np.abs(s.momentum_source(other)[inner][full]).max()
+            < 1e-3 * np.abs(s.momentum_source(component)[inner][full]).min())
+
+
 def test_partners_about_the_cell_mean_need_one_correlation_per_cell():
     """1 µm tracers in fully developed pipe flow, collision statistics from a pass through the
     same gas: partners drawn like the particles conserve momentum on average, so the net

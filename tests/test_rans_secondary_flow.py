@@ -88,3 +88,30 @@ def test_no_force_gives_exactly_zero_cross_flow():
     m = PipeMesh.build(D, 1.0, "periodic", radial_cells=12, azimuthal_cells=24, bulk_velocity=U, density=RHO, viscosity=MU)
     f = solve(m, GasProperties(RHO, MU), U, sources=Sources.zeros(m), tol=1e-10)
     assert np.all(f.uy == 0.0) and np.all(f.uz == 0.0)
+
+
+def test_a_force_turned_by_a_quarter_turn_turns_the_cross_flow_with_it():
+    """A band pushing +z on the right-hand side and the same band turned by 90° about the axis
+    (pushing +y at the top) give the same cross flow turned by 90° (sector k -> k + nt/4,
+    (u_z, u_y) -> (-u_y, u_z)), to round-off (1e-14 of the largest cross flow measured); and the
+    flow goes the way it is pushed.
+    A y/z swap or a sign of one in-plane component fails here."""
+    nr, nt = 10, 20
+    m = PipeMesh.build(D, 1.0, "periodic", radial_cells=nr, azimuthal_cells=nt, bulk_velocity=U, density=RHO,
+                       viscosity=MU)
+    R = m.radius
+    out = []
+    for c, band in ((2, np.exp(-((m.y / (0.3 * R)) ** 2)) * (m.z > 0)), (1, np.exp(-((m.z / (0.3 * R)) ** 2)) * (m.y > 0))):
+        s = Sources.zeros(m)
+        s.momentum[c, 0] = F * band
+        f = solve(m, GasProperties(RHO, MU), U, sources=s, tol=1e-10)
+        assert f.converged
+        out.append((f.uz[0], f.uy[0]))
+    (za, ya), (zb, yb) = out
+    turn = (np.arange(nt) + nt // 4) % nt  # sector k of the first flow lies at sector turn[k] in the second
+    scale = np.hypot(za, ya).max()
+    assert scale > 1e-3 * U
+    np.testing.assert_allclose(zb[:, turn], -ya, atol=1e-9 * scale)
+    np.testing.assert_allclose(yb[:, turn], za, atol=1e-9 * scale)
+    # pushed +z on the right (sector 0: theta from +z towards +y), the gas moves +z there
+    assert za[nr // 2, [0, nt - 1]].mean() > 0.1 * scale
