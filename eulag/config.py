@@ -520,7 +520,10 @@ class PhysicsConfig(_Section):
         the particle's inertia, Minier & Peirano 2001) or ``"particle"`` (R = R_P, the particle's
         correlation with the crossing-trajectory part, the form in which the MacInnes & Bracco
         term is usually quoted; its mean fluid velocity seen is T_L d<u'u'>/dx instead of T_L* d<u'u'>/dx, T_L* the
-        shorter decorrelation time of the fluid seen). Identical for tracers.
+        shorter decorrelation time of the fluid seen), or ``"response"`` (the Lagrangian factor
+        times 1/(1 + St), St = tau_p/T_L, the particle's response to the fluid after Bocksell &
+        Loth 2006 and Dehbi 2008: zero for a particle too heavy to follow the fluid, whose fluid
+        seen is the Eulerian one with zero mean fluctuation). Identical for tracers.
     partner_correlation : str
         Where the stochastic collision model takes the Stokes number of its partner
         correlation R(St) = exp(-0.55 St^0.4): ``"particle"`` (default; at the real particle,
@@ -563,7 +566,7 @@ class PhysicsConfig(_Section):
     langevin: bool = _param(BOOLEAN, "Langevin dispersion", default=True)
     langevin_drift_correction: bool = _param(BOOLEAN, "drift correction", default=True)
     langevin_drift_form: str = _param(STRING, "time factor of the drift correction", default="lagrangian",
-                                      choices=("particle", "lagrangian"))
+                                      choices=("particle", "lagrangian", "response"))
     gravity: bool = _param(BOOLEAN, "gravity", default=True)
     inter_particle_collisions: bool | None = _param(
         BOOLEAN, "inter-particle collisions, needs four-way coupling", default=None)

@@ -111,10 +111,14 @@ class PhysicsOptions:
 
     saffman_mei_lift, magnus_lift, rotation, langevin, drift_correction, gravity,
     inter_particle_collisions : bool — terms of docs/physics.md–§4 (magnus needs rotation).
-    drift_form : "particle" | "lagrangian" (default) — the drift correction's factor (1 − R_P) T_L (the
-        particle's correlation, crossing trajectories included) or (1 − R_L) T_L (the fluid's
-        Lagrangian correlation alone: the mean-pressure-gradient drift of the fluid seen acting
-        over the step, as in Minier & Peirano 2001); the two agree for tracers.
+    drift_form : "particle" | "lagrangian" (default) | "response" — the drift correction's factor
+        (1 − R_P) T_L (the particle's correlation, crossing trajectories included), (1 − R_L) T_L
+        (the fluid's Lagrangian correlation alone: the mean-pressure-gradient drift of the fluid
+        seen acting over the step, as in Minier & Peirano 2001), or (1 − R_L) T_L/(1 + St) with
+        St = τ_p/T_L (the particle's response to the fluid, Bocksell & Loth 2006, Dehbi 2008: the
+        correction cancels a spurious drift that comes from the particle moving with the fluid
+        across the gradient of σ, which a particle that does not follow the fluid does not
+        have); the three agree for tracers.
     magnus_model : "lun-liu" | "oesterle-bui-dinh".
     step_rule : "default" | "paper" | "kolmogorov" (the default rule with the T_L of the step
         bounded below by the Kolmogorov time sqrt(ν/ε): it binds where k²/(νε) < 39, where the
@@ -164,8 +168,8 @@ class PhysicsOptions:
             raise ValueError("magnus_lift needs rotation")
         if self.magnus_model not in ("lun-liu", "oesterle-bui-dinh"):
             raise ValueError(f"magnus_model = {self.magnus_model!r}: allowed lun-liu, oesterle-bui-dinh")
-        if self.drift_form not in ("particle", "lagrangian"):
-            raise ValueError(f"drift_form = {self.drift_form!r}: allowed particle, lagrangian")
+        if self.drift_form not in ("particle", "lagrangian", "response"):
+            raise ValueError(f"drift_form = {self.drift_form!r}: allowed particle, lagrangian, response")
         if self.step_rule not in ("default", "paper", "kolmogorov"):
             raise ValueError(f"step_rule = {self.step_rule!r}: allowed default, paper, kolmogorov")
         if self.partner_correlation not in ("particle", "cell"):
@@ -470,7 +474,8 @@ def _build_trackers(options):
     pp_collision = make_interparticle_collision(options.interparticle)
     langevin = options.langevin
     drift = options.drift_correction
-    drift_lagrangian = options.drift_form == "lagrangian"
+    drift_lagrangian = options.drift_form in ("lagrangian", "response")
+    drift_response = options.drift_form == "response"
     pp = options.inter_particle_collisions
     paper_rule = options.step_rule == "paper"
     kolmogorov_rule = options.step_rule == "kolmogorov"
@@ -816,6 +821,8 @@ def _build_trackers(options):
                         re2 = re0
                     if drift and drift_lagrangian:
                         drift_time = -math.expm1(-dt / t_ln) * t_ln  # (1 - R_L) T_L
+                        if drift_response:  # times T_L/(T_L + tau_p) = 1/(1 + St)
+                            drift_time *= t_ln / (t_ln + tau_step)
                     for c in range(3):
                         rp = re0 if c == 0 else (re1 if c == 1 else re2)
                         zc = z0 if c == 0 else (z1 if c == 1 else z2)

@@ -62,11 +62,11 @@ def radial_concentration(mesh, sample, x_range=(2.5, 3.5)):
     return wn / vol / mean, np.sqrt(var) / wn
 
 
-@pytest.mark.parametrize("form", ["particle", "lagrangian"])
+@pytest.mark.parametrize("form", ["particle", "lagrangian", "response"])
 def test_tracers_stay_well_mixed_in_pipe_flow_with_drift_correction(form):
     """1 µm tracers, uniform injection: radial concentration within ±10 % (wall cell included),
-    with either time factor of the drift correction, (1 − R_P) T_L or (1 − R_L) T_L (equal for
-    tracers, whose R_E is 1).
+    with each time factor of the drift correction, (1 − R_P) T_L, (1 − R_L) T_L or
+    (1 − R_L) T_L/(1 + St) (equal for tracers, whose R_E is 1 and St = τ_p/T_L ≈ 0).
 
     Run with step_factor 0.25: at the default 0.5 the wall-function ring comes out about 10 %
     low (the step is 0.5 T_L and T_L ∝ y there; a first-order step bias, see README).
@@ -79,6 +79,42 @@ def test_tracers_stay_well_mixed_in_pipe_flow_with_drift_correction(form):
     prof, se = radial_concentration(mesh, s)
     assert se.max() < 0.03
     assert np.all(np.abs(prof - 1.0) < 0.10), np.round(prof, 3)
+
+
+@pytest.mark.parametrize("form", ["lagrangian", "response"])
+def test_particles_too_heavy_to_follow_the_fluid_see_no_mean_fluid_velocity(form):
+    """Particles of 200 µm at 20,000 kg/m³ (τ_p ≈ 2.5 s, a hundred times T_L) move with the gas
+    along the pipe, but hardly across it: the fluid they see is the Eulerian fluid at their
+    position, whose fluctuation has zero mean. In a turbulence whose k rises from 0.1 m²/s² on the
+    axis to 1 at the wall (no mean cross flow, no gravity, lift or collisions) the mean radial
+    fluid velocity they see must vanish. The drift correction with the Lagrangian factor gives
+    them the drift T_L* (2/3) dk/dr of a fluid particle (here half or more of T_L (2/3) dk/dr,
+    pushed on to the gas as a radial force); with the response factor 1/(1 + St) it is gone."""
+    mesh = PipeMesh.build(0.0305, 1.0, "developing", axial_cells=10, radial_cells=8, azimuthal_cells=8,
+                          bulk_velocity=10.0)
+    R = mesh.radius
+    r = np.broadcast_to(np.hypot(mesh.y, mesh.z), mesh.shape)
+    gas = uniform_field(mesh, ux=10.0)
+    gas.k[:] = 0.1 + 0.9 * (r / R) ** 2
+    gas.epsilon[:] = 20.0 * (gas.k / 0.5) ** 1.5
+    physics = PhysicsOptions(**{**TRACER.__dict__, "drift_form": form})
+    s = track(mesh, gas, ParticleSpec(200e-6, 20000.0, 1.0, 10.0, 1e-9), physics, parcels=3000,
+              seed=5).mirror_symmetrised()
+    ct, st = np.cos(mesh.theta), np.sin(mesh.theta)
+    rings = slice(1, 7)  # off the axis and the wall-function ring; stations 5-9
+    radial = lambda c1, c2: (c1 * st + c2 * ct)[5:].mean(axis=(0, 2))[rings]  # noqa: E731
+    u_p = radial(s.velocity(1), s.velocity(2))
+    source = radial(s.momentum_source(1), s.momentum_source(2))
+    seen = radial(-s.momentum_source(1) / s.drag_coefficient + s.velocity(1),
+                  -s.momentum_source(2) / s.drag_coefficient + s.velocity(2))
+    kr = 0.1 + 0.9 * (mesh.r / R) ** 2
+    drift = (0.24 * (2.0 / 3.0) * kr / (20.0 * (kr / 0.5) ** 1.5) * (2.0 / 3.0) * 1.8 * mesh.r / R**2)[rings]
+    assert np.abs(u_p).max() < 0.1 * drift.min()  # they do not follow the fluid across the pipe
+    if form == "lagrangian":
+        assert np.all(seen > 0.4 * drift), np.round(seen / drift, 2)
+        assert np.all(source < 0.0)  # inwards on the gas
+    else:  # zero within the noise of 3,000 parcels (±0.15 of the drift per ring)
+        assert abs(np.mean(seen / drift)) < 0.05 and np.abs(seen / drift).max() < 0.25, np.round(seen / drift, 3)
 
 
 @pytest.mark.slow
