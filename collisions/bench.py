@@ -74,7 +74,8 @@ def _make_interparticle_driver(kernel):
         hits = 0
         for i in range(n_calls):
             vel[:] = vel0[i % m]
-            s = kernel(vel, omega, D_P, mean, D_P, mean, rms, zero, zero, number_density, 1.0, dt, rng, dv, partner)
+            s = kernel(vel, omega, D_P, mean, D_P, mean, rms, zero, zero, zero, number_density, 1.0, dt, rng, dv,
+                       partner)
             if s != 0:
                 hits += 1
         return hits

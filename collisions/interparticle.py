@@ -281,12 +281,18 @@ class InterparticleOptions:
     majorant_radius : K of the exact thinning (see ``make_interparticle_collision``); any
         K > 0 gives the same statistics, K = 5 makes the tail branch rare (1.5e-5) and the
         majorant tight. A numerical parameter, exposed for the tests.
+    covariance : "components" (Sommerfeld 2001: each Cartesian component of the partner's
+        fluctuation drawn with its own rms, independently of the others) or "full" (drawn with
+        the cell's whole velocity covariance matrix, through its Cholesky factor, so that the
+        partner does not depend on the frame: in a wall cell at 45° the particles' wall-normal
+        and along-wall fluctuations differ, which shows in y and z only as a covariance).
     """
 
     restitution: float = 0.9
     friction: float = 0.4
     rotation: bool = True
     majorant_radius: float = 5.0
+    covariance: str = "components"
 
     def __post_init__(self):
         if not 0.0 <= float(self.restitution) <= 1.0:
@@ -295,17 +301,19 @@ class InterparticleOptions:
             raise ValueError("friction must be >= 0")
         if not float(self.majorant_radius) > 0.0:
             raise ValueError("majorant_radius must be > 0")
+        if self.covariance not in ("components", "full"):
+            raise ValueError(f"covariance = {self.covariance!r}: allowed components, full")
         object.__setattr__(self, "restitution", float(self.restitution))
         object.__setattr__(self, "friction", float(self.friction))
         object.__setattr__(self, "majorant_radius", float(self.majorant_radius))
 
 
 @njit(**KERNEL_FLAGS)
-def _upper_speed(vel, mean_own, mean_partner, rms_partner, big_k):
+def _upper_speed(vel, mean_own, mean_partner, b, big_k):
     """Upper bound of |a| + max_i b_i · K over 0 ≤ R ≤ 1 (``make_interparticle_collision``).
 
     a = (1 − R)(u₁ − ū₂) + R (ū₁ − ū₂), so |a| ≤ max(|u₁ − ū₂|, |ū₁ − ū₂|); b_i = σ₂,i sqrt(1 − R²)
-    ≤ σ₂,i.  Inflated by a relative 1e-9 and an absolute 1e-12 of the velocity scale, which
+    ≤ σ₂,i ≤ b, the largest rms (with the full covariance: the square root of its trace).  Inflated by a relative 1e-9 and an absolute 1e-12 of the velocity scale, which
     covers the round-off of both this bound and the exact Q = −expm1(−c s) ≤ c s.
     NaN inputs give NaN (the caller then takes the exact path).
     """
@@ -316,7 +324,6 @@ def _upper_speed(vel, mean_own, mean_partner, rms_partner, big_k):
     qy = mean_own[1] - mean_partner[1]
     qz = mean_own[2] - mean_partner[2]
     a2 = max(px * px + py * py + pz * pz, qx * qx + qy * qy + qz * qz)
-    b = max(abs(rms_partner[0]), abs(rms_partner[1]), abs(rms_partner[2]))
     scale = (abs(vel[0]) + abs(vel[1]) + abs(vel[2]) + abs(mean_own[0]) + abs(mean_own[1])
              + abs(mean_own[2]) + abs(mean_partner[0]) + abs(mean_partner[1]) + abs(mean_partner[2]))
     return (math.sqrt(a2) + b * big_k) * (1.0 + 1e-9) + 1e-12 * scale
@@ -329,8 +336,8 @@ def make_interparticle_collision(options=InterparticleOptions()):
     Called once per real particle and time step from the particle step kernel:
 
         status = interparticle_collision(vel, omega, d_p, mean_own, d_partner, mean_partner,
-                                         rms_partner, omega_mean, omega_rms, number_density,
-                                         stokes, dt, rng, dv, partner)
+                                         rms_partner, cov_partner, omega_mean, omega_rms,
+                                         number_density, stokes, dt, rng, dv, partner)
 
     vel       float64[3] real-particle velocity [m/s]            (in/out)
     omega     float64[3] real-particle angular velocity [rad/s]  (in/out)
@@ -339,6 +346,8 @@ def make_interparticle_collision(options=InterparticleOptions()):
     d_partner partner diameter [m] (drawn by the caller; monodisperse: d_p)
     mean_partner, rms_partner  float64[3] cell mean and rms velocity (per component) of the
               partner's size class [m/s] (monodisperse: same class as mean_own)
+    cov_partner float64[3] its velocity covariances xy, xz, yz [m²/s²] (read only with
+              ``covariance = "full"``)
     omega_mean, omega_rms  float64[3] cell mean and rms angular velocity [rad/s] (zeros if
               not stored)
     number_density  n_p of real particles in the cell [1/m3] (of the partner class if the
@@ -373,9 +382,10 @@ def make_interparticle_collision(options=InterparticleOptions()):
     rotation = options.rotation
     big_k = options.majorant_radius
     p_tail = float(chi3_tail_probability(big_k))
+    full = options.covariance == "full"
 
     @njit(**KERNEL_FLAGS)
-    def interparticle_collision(vel, omega, d_p, mean_own, d_partner, mean_partner, rms_partner,
+    def interparticle_collision(vel, omega, d_p, mean_own, d_partner, mean_partner, rms_partner, cov_partner,
                                 omega_mean, omega_rms, number_density, stokes, dt, rng, dv, partner):
         if not (number_density > 0.0 and dt > 0.0):
             return COLLISION_NONE
@@ -385,7 +395,25 @@ def make_interparticle_collision(options=InterparticleOptions()):
         # (|a| ≤ max(|u1 − ū2|, |ū1 − ū2|) for 0 ≤ R ≤ 1 by convexity, b ≤ σ2), so when y clears
         # c · s_up (with a margin far above round-off) the decision y < Q is known to be false
         # without evaluating R(St) — the same decision and the same draws as the full test.
-        if y >= c * _upper_speed(vel, mean_own, mean_partner, rms_partner, big_k):
+        if full:
+            # the Cholesky factor L of the covariance matrix (semi-definite: a pivot that round-off
+            # or the blend of two passes leaves at or below zero makes its column zero); its rows
+            # take the place of the rms, |L ξ| ≤ ‖L‖_F |ξ| = sqrt(trace) |ξ| the majorant's bound
+            sxx = rms_partner[0] * rms_partner[0]
+            syy = rms_partner[1] * rms_partner[1]
+            szz = rms_partner[2] * rms_partner[2]
+            l00 = math.sqrt(sxx) if sxx > 0.0 else 0.0
+            l10 = cov_partner[0] / l00 if l00 > 0.0 else 0.0
+            l20 = cov_partner[1] / l00 if l00 > 0.0 else 0.0
+            d11 = syy - l10 * l10
+            l11 = math.sqrt(d11) if d11 > 0.0 else 0.0
+            l21 = (cov_partner[2] - l20 * l10) / l11 if l11 > 0.0 else 0.0
+            d22 = szz - l20 * l20 - l21 * l21
+            l22 = math.sqrt(d22) if d22 > 0.0 else 0.0
+            bound = math.sqrt(sxx + syy + szz)
+        else:
+            bound = max(abs(rms_partner[0]), abs(rms_partner[1]), abs(rms_partner[2]))
+        if y >= c * _upper_speed(vel, mean_own, mean_partner, bound, big_k):
             if not w < p_tail:
                 return COLLISION_NONE
         corr = sommerfeld_2001_correlation(stokes)
@@ -397,7 +425,7 @@ def make_interparticle_collision(options=InterparticleOptions()):
         bx = abs(rms_partner[0]) * ind
         by = abs(rms_partner[1]) * ind
         bz = abs(rms_partner[2]) * ind
-        q = collision_probability(c, math.sqrt(ax * ax + ay * ay + az * az) + max(bx, by, bz) * big_k)
+        q = collision_probability(c, math.sqrt(ax * ax + ay * ay + az * az) + bound * ind * big_k)
         if y < q:
             x0, x1 = next_normal_pair(rng)
             x2, _ = next_normal_pair(rng)
@@ -412,9 +440,14 @@ def make_interparticle_collision(options=InterparticleOptions()):
             x2 = r * cz
         else:
             return COLLISION_NONE
-        gx = ax - bx * x0
-        gy = ay - by * x1
-        gz = az - bz * x2
+        if full:  # the fluctuation sqrt(1 − R²) L ξ
+            gx = ax - ind * (l00 * x0)
+            gy = ay - ind * (l10 * x0 + l11 * x1)
+            gz = az - ind * (l20 * x0 + l21 * x1 + l22 * x2)
+        else:
+            gx = ax - bx * x0
+            gy = ay - by * x1
+            gz = az - bz * x2
         g = math.sqrt(gx * gx + gy * gy + gz * gz)
         if not y < collision_probability(c, g):
             return COLLISION_NONE

@@ -531,6 +531,14 @@ class PhysicsConfig(_Section):
         slip of the statistics and the cell-centre k, eps of the gas the pass runs in). Same
         constants; the partner is drawn about the cell mean either way (a per-particle R that
         varies across the wall cell makes the collisions' net momentum non-zero).
+    partner_covariance : str
+        How the fictitious partner's velocity fluctuation is drawn: ``"components"`` (default;
+        Sommerfeld 2001 and the reference paper: each Cartesian component with the cell's rms
+        of that component, independently) or ``"full"`` (with the cell's whole velocity
+        covariance matrix, through its Cholesky factor: the same law in any frame. Near the wall
+        the particles' wall-normal and along-wall fluctuations differ; in the cells at 45° to the
+        axes that difference is a y-z covariance, which the components' draw drops, so there the
+        partners are more isotropic than the particles).
     partner_momentum : str
         What becomes of the impulse the fictitious collision partners would receive:
         ``"discarded"`` (Sommerfeld 2001 and the reference paper: only the real particle is
@@ -576,6 +584,8 @@ class PhysicsConfig(_Section):
                                    default="seen-energy", choices=("seen-energy", "none"))
     partner_correlation: str = _param(STRING, "where the collision partner's correlation R(St) is taken",
                                       default="particle", choices=("particle", "cell"))
+    partner_covariance: str = _param(STRING, "the collision partner's velocity fluctuation",
+                                     default="components", choices=("components", "full"))
     partner_momentum: str = _param(STRING, "the collision partners' impulse", default="returned",
                                    choices=("discarded", "returned"))
     wall_cell_fields: str = _param(STRING, "gas fields the particles see in the wall-function cell",
@@ -821,7 +831,8 @@ LATER_KEYS: dict[str, Any] = {"physics.partner_correlation": "particle",
                                "numerics.gas_tolerance_early": "numerics.gas_tolerance",
                                "numerics.drag_implicit_weight": 1.0,
                                "numerics.residual_noise": "batch",
-                               "physics.wall_cell_fields": "log-law"}
+                               "physics.wall_cell_fields": "log-law",
+                               "physics.partner_covariance": "components"}
 
 
 def comparable_attrs(attrs: dict) -> dict:

@@ -118,7 +118,7 @@ import numpy as np
 
 import particles
 import rans
-from particles.layout import CS_APP, CS_ST, NCS
+from particles.layout import CS_APP, CS_COV, CS_ST, NCS
 from particles.stream import StreamedPass, StreamOvershoot
 from collisions import InterparticleOptions, WallOptions
 from eulag.files import savez_atomic
@@ -466,7 +466,7 @@ def physics_options(case):
         wall=WallOptions(impact_angle=w.impact_angle, shadow_effect=w.shadow_effect,
                          lateral_roughness=w.lateral_roughness, rotation=ph.rotation),
         interparticle=InterparticleOptions(restitution=p.restitution, friction=p.friction,
-                                           rotation=ph.rotation))
+                                           rotation=ph.rotation, covariance=ph.partner_covariance))
 
 
 def particle_spec(case):
@@ -1319,7 +1319,11 @@ class CouplingLoop:
                 self.stats = np.ascontiguousarray(np.column_stack([self.stats, st]))
             if self.stats.shape[1] == CS_APP:  # ... and before the returned partner momentum:
                 # nothing returned yet (partner_momentum = "discarded" never reads the columns)
-                pad = np.zeros((self.stats.shape[0], NCS - CS_APP))
+                pad = np.zeros((self.stats.shape[0], CS_COV - CS_APP))
+                self.stats = np.ascontiguousarray(np.column_stack([self.stats, pad]))
+            if self.stats.shape[1] == CS_COV:  # ... and before the velocity covariances: none
+                # (partner_covariance = "components" never reads them; "full" did not exist)
+                pad = np.zeros((self.stats.shape[0], NCS - CS_COV))
                 self.stats = np.ascontiguousarray(np.column_stack([self.stats, pad]))
             if self.stats.shape[1] != NCS:
                 raise CouplingError(f"{self.checkpoint}: its collision statistics hold {self.stats.shape[1]} "
@@ -1386,7 +1390,9 @@ def _relax_statistics(old, new, alpha, n_ref=None):
     The mean velocity and spin take the newest pass with weight max(α, STATISTICS_MEAN_WEIGHT):
     they approach the particles' own by only 1/(1 + f τ_p) of the gap per pass, blending at α
     slowed that further while the partners drawn about stale means inject momentum, but taken
-    unblended they joined the dense/sparse alternation of 50 µm scene e."""
+    unblended they joined the dense/sparse alternation of 50 µm scene e.  The velocity
+    covariances (``CS_COV``) are blended linearly with the variances' weight, so that the
+    blended covariance matrix stays positive semi-definite."""
     from particles.layout import CS_APP, CS_N, CS_OK, CS_RMS, CS_U, CS_WM, CS_WRMS
 
     both = (old[:, CS_OK] > 0) & (new[:, CS_OK] > 0)

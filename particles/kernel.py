@@ -68,7 +68,7 @@ from collisions.wall import (WALL_REBOUND, WALL_ROLLING, WALL_SLIDING, WallOptio
 
 from . import forces as fl
 from .fields import F_DKX, F_EPS, F_K, F_UX, F_WX, NF, interpolate
-from .layout import (A_BETA, A_J, A_PP, A_PPK, CS_APP, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
+from .layout import (A_BETA, A_J, A_MUV, A_PP, A_PPK, CS_APP, CS_COV, A_KSEEN, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP,
                      B_RESIDENCE, B_WALL, B_WEIGHT, NBUD, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP,
                      C_REBOUNDS, C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK,
@@ -477,6 +477,7 @@ def _build_trackers(options):
     drift_lagrangian = options.drift_form in ("lagrangian", "response")
     drift_response = options.drift_form == "response"
     pp = options.inter_particle_collisions
+    full_cov = pp and options.interparticle.covariance == "full"
     paper_rule = options.step_rule == "paper"
     kolmogorov_rule = options.step_rule == "kolmogorov"
     cell_corr = options.partner_correlation == "cell"
@@ -490,7 +491,7 @@ def _build_trackers(options):
 
     def track_parcels(first, count, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
                       x_centres, tab, axis, stats, prm, out, state, dvals, fvals, pos, vel, omega,
-                      useen, uf, imp, dv, partner, seg_cell, seg_frac, mean_own, rms, wmean, wrms,
+                      useen, uf, imp, dv, partner, seg_cell, seg_frac, mean_own, rms, cov, wmean, wrms,
                       saved, ray_sin, ray_cos, rng_inj, rng_disp, rng_wall, rng_pp, susp, w_first, w_last):
         if len(key) == 0:  # never true; keeps ``key`` in the closure (cache key)
             return
@@ -729,6 +730,10 @@ def _build_trackers(options):
                     out[base + A_MUU] += wmf * ux * ux
                     out[base + A_MUU + 1] += wmf * uy * uy
                     out[base + A_MUU + 2] += wmf * uz * uz
+                    if full_cov:
+                        out[base + A_MUV] += wmf * ux * uy
+                        out[base + A_MUV + 1] += wmf * ux * uz
+                        out[base + A_MUV + 2] += wmf * uy * uz
                     out[base + A_J] += ndot * f * imp0
                     out[base + A_J + 1] += ndot * f * imp1
                     out[base + A_J + 2] += ndot * f * imp2
@@ -876,6 +881,7 @@ def _build_trackers(options):
                             for c in range(3):
                                 mean_own[c] = stats[cell, CS_U + c]
                                 rms[c] = stats[cell, CS_RMS + c]
+                                cov[c] = stats[cell, CS_COV + c]
                                 wmean[c] = stats[cell, CS_WM + c]
                                 wrms[c] = stats[cell, CS_WRMS + c]
                             if cell_corr:
@@ -883,7 +889,7 @@ def _build_trackers(options):
                             else:
                                 st_pp = tau_step / (C_T * (2.0 * fvals[F_K] / 3.0) / fvals[F_EPS])
                             dv[:] = 0.0
-                            code = _PP(vel, omega, d, mean_own, d, mean_own, rms, wmean, wrms,
+                            code = _PP(vel, omega, d, mean_own, d, mean_own, rms, cov, wmean, wrms,
                                        stats[cell, CS_N], st_pp, dt, rng_pp, dv, partner)
                             if code > 0:
                                 out[off_cnt + C_PP] += 1.0
@@ -970,7 +976,7 @@ def _build_trackers(options):
                        x_centres, tab, axis, stats, prm, out, state, np.empty(NF), np.empty(NF),
                        np.empty(3), np.empty(3), np.zeros(3), np.zeros(3), np.empty(3), np.empty(3),
                        np.zeros(3), np.empty(9), np.empty(MAX_SEGMENTS, dtype=np.int64),
-                       np.empty(MAX_SEGMENTS), np.empty(3), np.empty(3), np.empty(3), np.empty(3),
+                       np.empty(MAX_SEGMENTS), np.empty(3), np.empty(3), np.zeros(3), np.empty(3), np.empty(3),
                        np.empty(6), np.sin(ray), np.cos(ray), rngs[0], rngs[1], rngs[2], rngs[3],
                        susp, w_first, w_last)
 

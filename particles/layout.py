@@ -32,13 +32,15 @@ A_PP = 21  # 21..23 Σ Ṅ m Δu_i of inter-particle collisions in the cell, par
 #            return included [N] → ÷ V: collision force on the particles [N m-3]
 A_PPK = 24  # 24..26 Σ Ṅ m δt a_i, the partner momentum returned as a mean acceleration a
 #             (physics.partner_momentum = "returned"; zero otherwise) [N]
-NACC = 27
+A_MUV = 27  # 27..29 Σ Ṅ m δt u_x u_y, u_x u_z, u_y u_z [kg m2/s2] → velocity covariances
+#             (physics.partner_covariance = "full"; zero otherwise)
+NACC = 30
 
 # Parity of each cell accumulator under the mirror z → −z of the section (+1 even, −1 odd):
 # velocities, impulses and forces are polar vectors (z component odd), spins axial vectors
 # (x and y components odd), everything else a scalar (particles.symmetry).
 ACC_PARITY = (1, 1, 1, 1, -1, 1, 1, 1, 1, 1, -1, 1, -1, -1, 1, 1, 1, 1, 1, 1, 1,
-              1, 1, -1, 1, 1, -1)
+              1, 1, -1, 1, 1, -1, 1, -1, -1)
 
 # ---------------------------------------------------------------- wall faces (x, theta)
 W_COUNT = 0  # Σ Ṅ over impacts             [1/s]
@@ -87,7 +89,8 @@ CS_WRMS = 11  # 11..13 spin rms [rad/s]
 CS_OK = 14  # 1 if the cell is sampled well enough for collisions
 CS_ST = 15  # Stokes number tau_p/T_L of the cell (cell-mean slip, cell-centre k and eps) [-]
 CS_APP = 16  # 16..18 acceleration returning the partners' momentum to the cell's particles [m s-2]
-NCS = 19
+CS_COV = 19  # 19..21 velocity covariances xy, xz, yz [m2 s-2] (physics.partner_covariance = "full")
+NCS = 22
 
 # ---------------------------------------------------------------- runtime parameters
 P_RHO_F = 0  # gas density [kg/m3]

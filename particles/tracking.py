@@ -26,7 +26,7 @@ from collisions.wall import minimum_bounce_speed
 
 from .fields import FieldTable
 from .kernel import C_T, NSTATE, PhysicsOptions, make_tracker
-from .layout import (A_BETA, A_J, A_KSEEN, A_PP, A_PPK, CS_APP, A_MU, A_MUU, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
+from .layout import (A_BETA, A_J, A_KSEEN, A_PP, A_PPK, CS_APP, CS_COV, A_MU, A_MUU, A_MUV, A_NW, A_NWW, A_SK, A_VISITS, A_WM, A_WN, B_INLET, B_J,
                      B_MASS_IN, B_MASS_OUT, B_MASS_STUCK, B_MOM_IN, B_MOM_OUT, B_PP, B_RESIDENCE,
                      B_WALL, B_WEIGHT, C_EXITED, C_INJECTED, C_INLET, C_LOST, C_PP, C_REBOUNDS,
                      C_ROLLING, C_SLIDING, C_STEPS, C_STUCK, C_VARIANT, CS_F, CS_N, CS_OK, CS_RMS, CS_ST, CS_U,
@@ -220,6 +220,17 @@ class Sample:
         mean = self.velocity(c)
         return np.sqrt(np.maximum(self._ratio(A_MUU + c) - mean * mean, 0.0))
 
+    def velocity_covariance(self, a, b):
+        """Covariance of particle velocity components a < b about the cell means [m2 s-2]; NaN if
+        empty, zero where the pass did not accumulate the products (they are accumulated with
+        ``physics.partner_covariance = "full"`` only)."""
+        i = {(0, 1): 0, (0, 2): 1, (1, 2): 2}[(a, b)]
+        have = self._acc(A_MUV) != 0.0
+        for j in (1, 2):
+            have = have | (self._acc(A_MUV + j) != 0.0)
+        cov = self._ratio(A_MUV + i) - self.velocity(a) * self.velocity(b)
+        return np.where(have | np.isnan(cov), cov, 0.0)
+
     def velocity_rms_stderr(self, c):
         rms = self.velocity_rms(c)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -376,7 +387,8 @@ class Sample:
     def cell_statistics(self, gas=None, min_visits=10):
         """Per-cell statistics (ncell, NCS) the next pass's collision model uses.
 
-        Number density, mean and rms velocity, mean and rms spin, the acceleration that
+        Number density, mean and rms velocity (and the velocity covariances where the pass
+        accumulated them, ``CS_COV``), mean and rms spin, the acceleration that
         returns the fictitious partners' momentum to the cell's particles (``CS_APP``: minus
         the collision jumps' net force over the particles' mass in the cell), the mean collision frequency
         (docs/physics.md, for the step limit; with the Sommerfeld correlation R(St), St = τ_p/T_L
@@ -395,6 +407,8 @@ class Sample:
             st[..., CS_RMS + c] = np.where(ok, self.velocity_rms(c), 0.0)
             st[..., CS_WM + c] = np.where(ok, self.spin(c), 0.0)
             st[..., CS_WRMS + c] = np.where(ok, self.spin_rms(c), 0.0)
+        for i, (a, b) in enumerate(((0, 1), (0, 2), (1, 2))):
+            st[..., CS_COV + i] = np.where(ok, self.velocity_covariance(a, b), 0.0)
         sigma = np.sqrt(np.mean(st[..., CS_RMS:CS_RMS + 3] ** 2, axis=-1))
         d = self.spec.diameter
         if gas is not None:

@@ -123,7 +123,7 @@ def test_head_on_equal_spheres_vs_textbook():
 # ---------------------------------------------------------------------------------------------
 
 OPTS = [ci.InterparticleOptions(), ci.InterparticleOptions(rotation=False),
-        ci.InterparticleOptions(restitution=1.0, friction=0.0)]
+        ci.InterparticleOptions(restitution=1.0, friction=0.0), ci.InterparticleOptions(covariance="full")]
 
 
 @given(vel=vec, w=vec, mean_own=vec, mean_partner=vec, rms=st.tuples(*[st.floats(0, 3)] * 3),
@@ -143,7 +143,8 @@ def test_fictitious_partner_path_is_binary_collision_with_sampled_partner(vel, w
     wmean, wrms = np.array(wmean) * 50.0, np.array(wrms)
     rng = cr.rng_state(seed, 2, 9, cr.STREAM_COLLISION)
     v1, w1, dv, partner = vel.copy(), omega.copy(), np.zeros(3), np.full(ci.PARTNER_SIZE, np.nan)
-    status = kernel(v1, w1, d1, mean_own, d2, mean_partner, rms, wmean, wrms, 1e15, stokes, 10.0, rng, dv, partner)
+    status = kernel(v1, w1, d1, mean_own, d2, mean_partner, rms, np.zeros(3), wmean, wrms, 1e15,
+                    stokes, 10.0, rng, dv, partner)
     if status == ci.COLLISION_NONE:
         # c |g| ≥ 50 makes P = 1 unless g = 0: only a vanishing relative velocity avoids the collision
         assert np.all(np.isnan(partner))
@@ -215,7 +216,7 @@ def _make_kernel_sampler(majorant_radius):
             v[:] = vel
             rng[cr.RNG_PARCEL] = i
             rng[cr.RNG_DRAW] = 0
-            if kernel(v, w, d1, mean_own, d2, mean_partner, rms, zero, zero, n_p, stokes, dt, rng, dv, partner):
+            if kernel(v, w, d1, mean_own, d2, mean_partner, rms, zero, zero, zero, n_p, stokes, dt, rng, dv, partner):
                 out_u2[hits] = partner[:3]
                 out_v[hits] = v
                 hits += 1
@@ -274,7 +275,8 @@ def test_stochastic_kernel_vs_py_func(opt):
     rs = np.random.default_rng(opt)
     for k in range(10):
         args = dict(d_p=1e-4, mean_own=np.array([10.0, 0, 0]), d_partner=2e-4, mean_partner=np.array([9.0, 0.1, 0]),
-                    rms_partner=np.array([0.5, 0.3, 0.3]), omega_mean=np.array([0, 0, -100.0]),
+                    rms_partner=np.array([0.5, 0.3, 0.3]), cov_partner=np.array([0.05, -0.02, 0.04]),
+                    omega_mean=np.array([0, 0, -100.0]),
                     omega_rms=np.array([50.0, 50.0, 50.0]), number_density=1e11, stokes=rs.uniform(0, 5),
                     dt=1e-3)
         vel = np.array([10.0, 0, 0]) + rs.normal(size=3)
@@ -284,7 +286,8 @@ def test_stochastic_kernel_vs_py_func(opt):
             v, w, dv, part = vel.copy(), om.copy(), np.zeros(3), np.zeros(ci.PARTNER_SIZE)
             rng = cr.rng_state(4, 1, k, cr.STREAM_COLLISION)
             res = fn(v, w, args["d_p"], args["mean_own"], args["d_partner"], args["mean_partner"],
-                     args["rms_partner"], args["omega_mean"], args["omega_rms"], args["number_density"],
+                     args["rms_partner"], args["cov_partner"], args["omega_mean"], args["omega_rms"],
+                     args["number_density"],
                      args["stokes"], args["dt"], rng, dv, part)
             out.append((res, v, w, dv, part, rng))
         (ra, *xa), (rb, *xb) = out
@@ -298,7 +301,7 @@ def test_empty_cell_or_zero_step_never_collides():
     rng = cr.rng_state(1, 0, 0, cr.STREAM_COLLISION)
     z = np.zeros(3)
     for n_p, dt in ((0.0, 1.0), (1e12, 0.0)):
-        assert ci.interparticle_collision(v, w, 1e-4, z, 1e-4, z, np.ones(3), z, z, n_p, 1.0, dt, rng, dv,
+        assert ci.interparticle_collision(v, w, 1e-4, z, 1e-4, z, np.ones(3), z, z, z, n_p, 1.0, dt, rng, dv,
                                           part) == ci.COLLISION_NONE
     assert rng[cr.RNG_DRAW] == 0
 
@@ -418,7 +421,7 @@ def _make_frequency_experiment():
             omega[:] = 0.0
             rng[cr.RNG_PARCEL] = i
             rng[cr.RNG_DRAW] = 0
-            status = kernel(vel, omega, D, mean, D, mean, rms, zero, zero, N_P, stokes, dt, rng, dv, partner)
+            status = kernel(vel, omega, D, mean, D, mean, rms, zero, zero, zero, N_P, stokes, dt, rng, dv, partner)
             if status != ci.COLLISION_NONE:
                 hits += 1
         return hits
@@ -480,3 +483,70 @@ def test_collision_frequency_falls_to_zero_with_full_correlation():
         ratios.append(hits / (n * dt) / f_kin)
     assert all(a > b for a, b in zip(ratios, ratios[1:]))
     assert ratios[0] > 0.95 and ratios[-1] < 0.03
+
+
+# ---------------------------------------------------------------------------------------------
+# the partner's velocity covariance (physics.partner_covariance)
+# ---------------------------------------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def _make_variance_experiment(covariance):
+    kernel = ci.make_interparticle_collision(ci.InterparticleOptions(covariance=covariance, rotation=False))
+
+    @njit
+    def run(chol, rms, cov, n, seed):
+        """n particles with zero-mean Gaussian velocities of Cholesky factor ``chol``, each colliding
+        (or not) once with the partners of a cell with that rms and covariance (uncorrelated,
+        St → ∞); per particle the change of v vᵀ (xx, yy, zz, xy, xz, yz)."""
+        zero = np.zeros(3)
+        vel = np.empty(3)
+        omega = np.zeros(3)
+        dv = np.zeros(3)
+        partner = np.zeros(ci.PARTNER_SIZE)
+        out = np.zeros((n, 6))
+        src = cr.rng_state(seed, 0, 0, cr.STREAM_INJECTION)
+        rng = cr.rng_state(seed, 0, 0, cr.STREAM_COLLISION)
+        for i in range(n):
+            a, b = cr.next_normal_pair(src)
+            c, _ = cr.next_normal_pair(src)
+            for k in range(3):
+                vel[k] = chol[k, 0] * a + chol[k, 1] * b + chol[k, 2] * c
+            v0 = vel.copy()
+            rng[cr.RNG_PARCEL] = i
+            rng[cr.RNG_DRAW] = 0
+            kernel(vel, omega, D, zero, D, zero, rms, cov, zero, zero, 2e10, 1e12, 1e-3, rng, dv, partner)
+            for k, (p, q) in enumerate(((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))):
+                out[i, k] = vel[p] * vel[q] - v0[p] * v0[q]
+        return out
+
+    return run
+
+
+def _wall_normal_variance_rate(covariance, turn, n=120000):
+    """Mean change of the squared velocity normal to a wall, per collision test, for particles
+    whose velocity has rms 0.5 (axial), 1.2 (wall-normal) and 0.65 m/s (along the wall), in a
+    cell whose wall normal is y (turn = 0) or lies at 45° between y and z (turn = 45°)."""
+    t = math.radians(turn)
+    q = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(t), -math.sin(t)], [0.0, math.sin(t), math.cos(t)]])
+    sigma = q @ np.diag([0.5**2, 1.2**2, 0.65**2]) @ q.T
+    out = _make_variance_experiment(covariance)(np.linalg.cholesky(sigma), np.sqrt(np.diag(sigma)).copy(),
+                                                np.array([sigma[0, 1], sigma[0, 2], sigma[1, 2]]), n, 11)
+    nrm = q[:, 1]
+    m = np.array([[0, 3, 4], [3, 1, 5], [4, 5, 2]])
+    per = sum(out[:, m[p, r]] * nrm[p] * nrm[r] for p in range(3) for r in range(3))
+    return per.mean(), per.std() / math.sqrt(n)
+
+
+def test_partners_with_the_full_covariance_act_alike_in_any_frame():
+    """The same particles, their wall-normal axis along y or at 45° between y and z: collisions
+    with partners drawn with the cell's full covariance change the wall-normal variance alike
+    (within 4 standard errors); partners drawn per Cartesian component are more isotropic than
+    the particles at 45° (the y-z covariance dropped) and drain it faster there."""
+    full0, se0 = _wall_normal_variance_rate("full", 0.0)
+    full45, se45 = _wall_normal_variance_rate("full", 45.0)
+    assert full0 < -20.0 * se0  # the collisions drain the largest variance
+    assert abs(full45 - full0) < 4.0 * math.hypot(se0, se45), (full0, full45)
+    comp0, sc0 = _wall_normal_variance_rate("components", 0.0)
+    comp45, sc45 = _wall_normal_variance_rate("components", 45.0)
+    assert comp0 == pytest.approx(full0, abs=4.0 * math.hypot(se0, sc0))  # the same at 0°
+    assert comp45 < comp0 - 8.0 * math.hypot(sc0, sc45), (comp0, comp45)

@@ -6,7 +6,7 @@ import pytest
 from eulag.coupling import CouplingLoop
 from eulag.runs import run
 from particles import ParticleSpec, PhysicsOptions, track
-from particles.layout import ACC_PARITY, A_MU, A_NW, A_PP, A_PPK, A_WM, NACC
+from particles.layout import ACC_PARITY, A_MU, A_MUV, A_NW, A_PP, A_PPK, A_WM, NACC
 from particles.symmetry import mirror_average_vector, mirror_cell_array, mirror_sectors
 
 from .particle_support import periodic_pipe, uniform_field
@@ -37,6 +37,7 @@ def test_parities_are_those_of_scalars_polar_and_axial_vectors():
     assert [ACC_PARITY[A_NW + c] for c in range(3)] == [-1, -1, 1]  # axial vector: x, y odd
     assert [ACC_PARITY[A_PP + c] for c in range(3)] == [1, 1, -1]
     assert [ACC_PARITY[A_PPK + c] for c in range(3)] == [1, 1, -1]
+    assert [ACC_PARITY[A_MUV + c] for c in range(3)] == [1, -1, -1]  # u_x u_y even; u_x u_z, u_y u_z odd
 
 
 @pytest.fixture(scope="module")
