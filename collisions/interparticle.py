@@ -8,6 +8,8 @@ time step the stochastic model
    ``sample_size_class``), velocity
        u₂ = ū₂ + R(St) u′₁ + σ₂ sqrt(1 − R²) ξ,  u′₁ = u₁ − ū₁,  ξ ~ N(0, 1) per component,
        R(St) = exp(−0.55 St^0.4),  St = τ_p/T_L                   (Sommerfeld 2001)
+   (with ``InterparticleOptions(covariance="full")`` σ₂ ξ becomes L ξ, L the Cholesky factor
+   of the cell's velocity covariance matrix)
    and angular velocity ω₂ = ω̄ (+ σ_ω ξ′ if the cell rms is given)
 2. collides with probability P = 1 − exp(−f Δt),
        f = (π/4) (D₁ + D₂)² |u₁ − u₂| n_p                           [Sommerfeld 2001]
@@ -366,7 +368,9 @@ def make_interparticle_collision(options=InterparticleOptions()):
 
     Exact thinning.  The model draws ξ ~ N(0, I), forms g = a − b∘ξ with
     a = u₁ − ū₂ − R (u₁ − ū₁), b = σ₂ sqrt(1 − R²), and collides if Y < P(ξ) = 1 − exp(−c|g|),
-    c = (π/4)(D₁ + D₂)² n Δt, Y ~ U(0, 1).  Since P(ξ) ≤ Q = 1 − exp(−c(|a| + max b · K))
+    c = (π/4)(D₁ + D₂)² n Δt, Y ~ U(0, 1) (with the full covariance g = a − sqrt(1 − R²) L ξ,
+    and max b below is sqrt(1 − R²) sqrt(trace), ≥ |L ξ|/|ξ| for a semi-definite matrix).
+    Since P(ξ) ≤ Q = 1 − exp(−c(|a| + max b · K))
     whenever |ξ| ≤ K, the kernel draws Y first: if Y < Q it samples ξ and decides exactly;
     if Y ≥ Q a collision needs |ξ| > K, an event of probability p_K = P(χ₃ > K) decided by a
     second uniform, after which ξ is drawn from the tail (``chi3_tail_radius``, uniform

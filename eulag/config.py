@@ -535,7 +535,8 @@ class PhysicsConfig(_Section):
         How the fictitious partner's velocity fluctuation is drawn: ``"components"`` (default;
         Sommerfeld 2001 and the reference paper: each Cartesian component with the cell's rms
         of that component, independently) or ``"full"`` (with the cell's whole velocity
-        covariance matrix, through its Cholesky factor: the same law in any frame. Near the wall
+        covariance matrix, through its Cholesky factor: the same velocity law in any frame (the
+        spin fluctuation stays per component). Near the wall
         the particles' wall-normal and along-wall fluctuations differ; in the cells at 45° to the
         axes that difference is a y-z covariance, which the components' draw drops, so there the
         partners are more isotropic than the particles).

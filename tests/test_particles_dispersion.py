@@ -83,12 +83,12 @@ def test_tracers_stay_well_mixed_in_pipe_flow_with_drift_correction(form):
 
 @pytest.mark.parametrize("form", ["lagrangian", "response"])
 def test_particles_too_heavy_to_follow_the_fluid_see_no_mean_fluid_velocity(form):
-    """Particles of 200 µm at 20,000 kg/m³ (τ_p ≈ 2.5 s, a hundred times T_L) move with the gas
+    """Particles of 200 µm at 20,000 kg/m³ (τ_p ≈ 2.5 s, 330–750 times T_L) move with the gas
     along the pipe, but hardly across it: the fluid they see is the Eulerian fluid at their
     position, whose fluctuation has zero mean. In a turbulence whose k rises from 0.1 m²/s² on the
     axis to 1 at the wall (no mean cross flow, no gravity, lift or collisions) the mean radial
     fluid velocity they see must vanish. The drift correction with the Lagrangian factor gives
-    them the drift T_L* (2/3) dk/dr of a fluid particle (here half or more of T_L (2/3) dk/dr,
+    them the drift T_L* (2/3) dk/dr of a fluid particle (here 0.65–0.84 of T_L (2/3) dk/dr,
     pushed on to the gas as a radial force); with the response factor 1/(1 + St) it is gone."""
     mesh = PipeMesh.build(0.0305, 1.0, "developing", axial_cells=10, radial_cells=8, azimuthal_cells=8,
                           bulk_velocity=10.0)
@@ -111,7 +111,7 @@ def test_particles_too_heavy_to_follow_the_fluid_see_no_mean_fluid_velocity(form
     drift = (0.24 * (2.0 / 3.0) * kr / (20.0 * (kr / 0.5) ** 1.5) * (2.0 / 3.0) * 1.8 * mesh.r / R**2)[rings]
     assert np.abs(u_p).max() < 0.1 * drift.min()  # they do not follow the fluid across the pipe
     if form == "lagrangian":
-        assert np.all(seen > 0.4 * drift), np.round(seen / drift, 2)
+        assert np.all(seen > 0.5 * drift), np.round(seen / drift, 2)
         assert np.all(source < 0.0)  # inwards on the gas
     else:  # zero within the noise of 3,000 parcels (±0.15 of the drift per ring)
         assert abs(np.mean(seen / drift)) < 0.05 and np.abs(seen / drift).max() < 0.25, np.round(seen / drift, 3)

@@ -111,7 +111,7 @@ def test_a_force_turned_by_a_quarter_turn_turns_the_cross_flow_with_it():
     turn = (np.arange(nt) + nt // 4) % nt  # sector k of the first flow lies at sector turn[k] in the second
     scale = np.hypot(za, ya).max()
     assert scale > 1e-3 * U
-    np.testing.assert_allclose(zb[:, turn], -ya, atol=1e-9 * scale)
-    np.testing.assert_allclose(yb[:, turn], za, atol=1e-9 * scale)
+    np.testing.assert_allclose(zb[:, turn], -ya, atol=1e-12 * scale)
+    np.testing.assert_allclose(yb[:, turn], za, atol=1e-12 * scale)
     # pushed +z on the right (sector 0: theta from +z towards +y), the gas moves +z there
     assert za[nr // 2, [0, nt - 1]].mean() > 0.1 * scale
