@@ -881,7 +881,8 @@ def _build_trackers(options):
                             for c in range(3):
                                 mean_own[c] = stats[cell, CS_U + c]
                                 rms[c] = stats[cell, CS_RMS + c]
-                                cov[c] = stats[cell, CS_COV + c]
+                                if full_cov:  # read by the partner draw only then
+                                    cov[c] = stats[cell, CS_COV + c]
                                 wmean[c] = stats[cell, CS_WM + c]
                                 wrms[c] = stats[cell, CS_WRMS + c]
                             if cell_corr:

@@ -177,9 +177,10 @@ def test_fictitious_partner_path_is_binary_collision_with_sampled_partner(vel, w
 
 
 @njit
-def _direct_reference(vel, mean_own, d1, d2, mean_partner, rms, n_p, stokes, dt, n, seed, out_u2):
-    """The stochastic model written the plain way (docs/physics.md steps 3–4): draw ξ, form u₂,
-    collide if Y < 1 − exp(−f Δt). Returns the number of collisions; partner velocities in out_u2."""
+def _direct_reference(vel, mean_own, d1, d2, mean_partner, chol, n_p, stokes, dt, n, seed, out_u2):
+    """The stochastic model written the plain way (docs/physics.md steps 3–4): draw ξ, form u₂ with
+    the fluctuation chol @ ξ (diag(rms) for the per-component draw), collide if Y < 1 − exp(−f Δt).
+    Returns the number of collisions; partner velocities in out_u2."""
     R = math.exp(-0.55 * stokes**0.4)
     s = math.sqrt(1.0 - R * R)
     hits = 0
@@ -189,8 +190,9 @@ def _direct_reference(vel, mean_own, d1, d2, mean_partner, rms, n_p, stokes, dt,
         z2, _ = cr.next_normal_pair(rng)
         y = cr.next_uniform(rng)
         u2 = np.empty(3)
-        for k, z in enumerate((z0, z1, z2)):
-            u2[k] = mean_partner[k] + R * (vel[k] - mean_own[k]) + rms[k] * s * z
+        for k in range(3):
+            u2[k] = (mean_partner[k] + R * (vel[k] - mean_own[k])
+                     + s * (chol[k, 0] * z0 + chol[k, 1] * z1 + chol[k, 2] * z2))
         g = math.sqrt(((vel - u2) ** 2).sum())
         f = math.pi / 4 * (d1 + d2) ** 2 * g * n_p
         if y < 1.0 - math.exp(-f * dt):
@@ -200,11 +202,12 @@ def _direct_reference(vel, mean_own, d1, d2, mean_partner, rms, n_p, stokes, dt,
 
 
 @lru_cache(maxsize=None)
-def _make_kernel_sampler(majorant_radius):
-    kernel = ci.make_interparticle_collision(ci.InterparticleOptions(majorant_radius=majorant_radius))
+def _make_kernel_sampler(majorant_radius, covariance="components"):
+    kernel = ci.make_interparticle_collision(ci.InterparticleOptions(majorant_radius=majorant_radius,
+                                                                     covariance=covariance))
 
     @njit
-    def run(vel, mean_own, d1, d2, mean_partner, rms, n_p, stokes, dt, n, seed, out_u2, out_v):
+    def run(vel, mean_own, d1, d2, mean_partner, rms, cov, n_p, stokes, dt, n, seed, out_u2, out_v):
         zero = np.zeros(3)
         partner = np.zeros(ci.PARTNER_SIZE)
         dv = np.zeros(3)
@@ -216,7 +219,7 @@ def _make_kernel_sampler(majorant_radius):
             v[:] = vel
             rng[cr.RNG_PARCEL] = i
             rng[cr.RNG_DRAW] = 0
-            if kernel(v, w, d1, mean_own, d2, mean_partner, rms, zero, zero, zero, n_p, stokes, dt, rng, dv, partner):
+            if kernel(v, w, d1, mean_own, d2, mean_partner, rms, cov, zero, zero, n_p, stokes, dt, rng, dv, partner):
                 out_u2[hits] = partner[:3]
                 out_v[hits] = v
                 hits += 1
@@ -241,10 +244,10 @@ def test_thinned_kernel_vs_direct_algorithm(majorant_radius, stokes, p_scale):
     dt = p_scale / f_scale
     n = 200_000
     ref_u2 = np.empty((n, 3))
-    hits_ref = _direct_reference(vel, mean_own, d1, d2, mean_partner, rms, n_p, stokes, dt, n, 1, ref_u2)
+    hits_ref = _direct_reference(vel, mean_own, d1, d2, mean_partner, np.diag(rms), n_p, stokes, dt, n, 1, ref_u2)
     k_u2, k_v = np.empty((n, 3)), np.empty((n, 3))
-    hits = _make_kernel_sampler(majorant_radius)(vel, mean_own, d1, d2, mean_partner, rms, n_p, stokes, dt, n, 2,
-                                                 k_u2, k_v)
+    hits = _make_kernel_sampler(majorant_radius)(vel, mean_own, d1, d2, mean_partner, rms, np.zeros(3), n_p, stokes,
+                                                 dt, n, 2, k_u2, k_v)
     p = hits_ref / n
     assert abs(hits - hits_ref) < 5 * math.sqrt(2 * n * p * (1 - p))
     for c in range(3):
@@ -252,55 +255,6 @@ def test_thinned_kernel_vs_direct_algorithm(majorant_radius, stokes, p_scale):
     g_k = np.linalg.norm(vel - k_u2[:hits], axis=1)
     g_r = np.linalg.norm(vel - ref_u2[:hits_ref], axis=1)
     assert stats.ks_2samp(g_k, g_r).pvalue > 1e-3
-
-
-@njit
-def _direct_reference_full(vel, mean_own, d1, d2, mean_partner, chol, n_p, stokes, dt, n, seed, out_u2):
-    """As _direct_reference, the partner's fluctuation drawn as chol @ ξ (its covariance chol cholᵀ)."""
-    R = math.exp(-0.55 * stokes**0.4)
-    s = math.sqrt(1.0 - R * R)
-    hits = 0
-    rng = cr.rng_state(seed, 0, 0, cr.STREAM_INJECTION)
-    for i in range(n):
-        z0, z1 = cr.next_normal_pair(rng)
-        z2, _ = cr.next_normal_pair(rng)
-        y = cr.next_uniform(rng)
-        u2 = np.empty(3)
-        for k in range(3):
-            u2[k] = (mean_partner[k] + R * (vel[k] - mean_own[k])
-                     + s * (chol[k, 0] * z0 + chol[k, 1] * z1 + chol[k, 2] * z2))
-        g = math.sqrt(((vel - u2) ** 2).sum())
-        f = math.pi / 4 * (d1 + d2) ** 2 * g * n_p
-        if y < 1.0 - math.exp(-f * dt):
-            out_u2[hits] = u2
-            hits += 1
-    return hits
-
-
-@lru_cache(maxsize=None)
-def _make_full_kernel_sampler(majorant_radius):
-    kernel = ci.make_interparticle_collision(ci.InterparticleOptions(majorant_radius=majorant_radius,
-                                                                     covariance="full"))
-
-    @njit
-    def run(vel, mean_own, d1, d2, mean_partner, rms, cov, n_p, stokes, dt, n, seed, out_u2):
-        zero = np.zeros(3)
-        partner = np.zeros(ci.PARTNER_SIZE)
-        dv = np.zeros(3)
-        v = np.empty(3)
-        w = np.zeros(3)
-        rng = cr.rng_state(seed, 0, 0, cr.STREAM_COLLISION)
-        hits = 0
-        for i in range(n):
-            v[:] = vel
-            rng[cr.RNG_PARCEL] = i
-            rng[cr.RNG_DRAW] = 0
-            if kernel(v, w, d1, mean_own, d2, mean_partner, rms, cov, zero, zero, n_p, stokes, dt, rng, dv, partner):
-                out_u2[hits] = partner[:3]
-                hits += 1
-        return hits
-
-    return run
 
 
 @pytest.mark.parametrize("majorant_radius", [5.0, 0.3])
@@ -319,11 +273,11 @@ def test_thinned_kernel_with_the_full_covariance_vs_direct_algorithm(majorant_ra
     d1, d2, n_p = 100e-6, 150e-6, 1e10
     dt = p_scale / (math.pi / 4 * (d1 + d2) ** 2 * n_p)
     n = 200_000
-    ref_u2, k_u2 = np.empty((n, 3)), np.empty((n, 3))
-    hits_ref = _direct_reference_full(vel, mean_own, d1, d2, mean_partner, np.linalg.cholesky(sigma), n_p, stokes,
-                                      dt, n, 1, ref_u2)
-    hits = _make_full_kernel_sampler(majorant_radius)(vel, mean_own, d1, d2, mean_partner, rms, cov, n_p, stokes,
-                                                      dt, n, 2, k_u2)
+    ref_u2, k_u2, k_v = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    hits_ref = _direct_reference(vel, mean_own, d1, d2, mean_partner, np.linalg.cholesky(sigma), n_p, stokes, dt, n,
+                                 1, ref_u2)
+    hits = _make_kernel_sampler(majorant_radius, "full")(vel, mean_own, d1, d2, mean_partner, rms, cov, n_p, stokes,
+                                                         dt, n, 2, k_u2, k_v)
     p = hits_ref / n
     assert abs(hits - hits_ref) < 5 * math.sqrt(2 * n * p * (1 - p))
     a, b = k_u2[:hits], ref_u2[:hits_ref]
