@@ -28,9 +28,9 @@ LOOP_FLAGS    the tracking kernel's parcel loop (with what is inlined into it): 
               3.85 → 4.1 M parcel-steps/s per core.
 """
 
-import os
-
 from numba import njit
+
+from jitcache import guard_numba_cache
 
 JIT_FLAGS = {"cache": True}
 KERNEL_FLAGS = {"cache": True, "_nrt": False}
@@ -43,41 +43,4 @@ def inlined(kernel):
     return njit(inline="always", **KERNEL_FLAGS)(kernel.py_func)
 
 
-def _serialise_numba_cache():
-    """Make numba's on-disk cache safe for processes compiling at the same time.
-
-    ``IndexDataCacheFile.save`` reads the index, picks the first free data-file number, and
-    writes both back, unlocked: two processes compiling different variants of one function
-    (eulag's kernels are closures built per option set) can both pick number N, and the index
-    entry that survives may point at the other variant's code, so that, e.g., a four-way pass is
-    served the tracking kernel compiled without inter-particle collisions.  Saves and loads
-    hold an exclusive lock on a file in the cache directory (POSIX; elsewhere unchanged), and
-    every batch of a pass reports the option set it was compiled for (particles.tracking).
-    """
-    try:
-        import fcntl
-
-        from numba.core import caching
-    except ImportError:
-        return
-    cls = caching.IndexDataCacheFile
-    if getattr(cls, "_eulag_serialised", False):
-        return
-
-    def locked(method):
-        def wrapper(self, *args, **kwargs):
-            try:
-                fh = open(os.path.join(self._cache_path, ".eulag-numba-cache.lock"), "a")
-            except OSError:  # a read-only cache location: numba itself will not write there
-                return method(self, *args, **kwargs)
-            with fh:
-                fcntl.flock(fh, fcntl.LOCK_EX)
-                return method(self, *args, **kwargs)
-        return wrapper
-
-    cls.save = locked(cls.save)
-    cls.load = locked(cls.load)
-    cls._eulag_serialised = True
-
-
-_serialise_numba_cache()
+guard_numba_cache()  # numba's on-disk cache: no stale kernels, no clashing writers (jitcache)

@@ -13,6 +13,10 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+from jitcache import guard_numba_cache
+
+guard_numba_cache()  # numba's on-disk cache: no stale kernels, no clashing writers (jitcache)
+
 from .mesh import PipeMesh, locate_cell
 from .solver import GasField, GasProperties, SolverDivergence, Sources, solve
 

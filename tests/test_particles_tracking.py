@@ -383,11 +383,11 @@ def test_a_kernel_compiled_for_other_options_is_refused(monkeypatch):
 
 def test_numba_cache_entries_written_at_once_keep_their_own_data(tmp_path, monkeypatch):
     """Two writers of one numba cache index (two processes compiling two variants of a kernel)
-    must not end with one key pointing at the other's data: collisions.conf serialises them."""
+    must not end with one key pointing at the other's data: jitcache serialises them."""
     import threading
     import time
 
-    import collisions.conf  # noqa: F401 - installs the lock
+    import jitcache  # noqa: F401 - installs the lock
     from numba.core import caching
 
     cls = caching.IndexDataCacheFile
@@ -503,3 +503,41 @@ def test_kolmogorov_step_rule_acts_only_where_the_turbulence_has_died_out():
     se = math.hypot(np.sqrt(((q.momentum_source_stderr(0) * q.volume) ** 2).sum()),
                     np.sqrt(((d.momentum_source_stderr(0) * d.volume) ** 2).sum()))
     assert abs(va - vb) < 4.0 * se, (va, vb, se)
+
+
+def test_cache_keys_of_the_compiled_packages_hold_their_sources_digest(tmp_path):
+    """numba keys a cached function by its own bytecode and file only; the kernels assembled from
+    other files (the tracker from the motion, wall and collision kernels) would be served stale
+    after an edit of one of those.  jitcache adds a digest of every source file of the compiled
+    packages to their functions' keys, and the digest follows any edit of any of them."""
+    import shutil
+
+    from numba import njit
+    from numba.core.caching import Cache, FunctionCache
+
+    import jitcache as jit
+    from collisions.interparticle import sommerfeld_2001_correlation
+    from particles.kernel import fold_batches
+
+    # the digest: every .py file of every compiled package, and nothing else
+    root = tmp_path / "tree"
+    src = jit.Path(jit.__file__).resolve().parents[1]
+    for pkg in jit.PROJECT_PACKAGES:
+        shutil.copytree(src / pkg, root / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    base = jit.source_digest(root)
+    assert base == jit.source_digest(src)
+    (root / "collisions" / "notes.txt").write_text("not a source file")
+    assert jit.source_digest(root) == base
+    f = root / "collisions" / "interparticle.py"
+    f.write_text(f.read_text().replace("exp(-0.55 * stokes**0.4)", "exp(-0.56 * stokes**0.4)"))
+    assert jit.source_digest(root) != base
+
+    # the keys: the project's functions (module-level and closures) carry it, others do not
+    def foreign(x):
+        return x + 1.0
+
+    digest = Cache._eulag_digest  # the sources' digest when the guard was installed
+    for fn, ours in ((sommerfeld_2001_correlation.py_func, True), (fold_batches.py_func, True),
+                     (njit(foreign).py_func, False)):
+        key = FunctionCache(fn)._index_key((), njit(foreign).targetctx.codegen())
+        assert (key[-1][-1] == digest) == ours, fn
