@@ -22,6 +22,8 @@ import time
 import numpy as np
 from numba import njit
 
+from jitcache import EXPLICIT_FLAGS
+
 from .interparticle import (
     PARTNER_SIZE,
     InterparticleOptions,
@@ -37,7 +39,7 @@ D_P = 200e-6  # m
 
 
 def _make_wall_driver(kernel):
-    @njit
+    @njit(**EXPLICIT_FLAGS)
     def drive(pos0, vel0, dgamma, v_min, status_count, n_calls):
         pos = np.empty(3)
         vel = np.empty(3)
@@ -62,7 +64,7 @@ def _make_wall_driver(kernel):
 
 
 def _make_interparticle_driver(kernel):
-    @njit
+    @njit(**EXPLICIT_FLAGS)
     def drive(vel0, mean, rms, number_density, dt, n_calls):
         vel = np.empty(3)
         omega = np.zeros(3)
@@ -83,7 +85,7 @@ def _make_interparticle_driver(kernel):
     return drive
 
 
-@njit
+@njit(**EXPLICIT_FLAGS)
 def _standin_step(vel0, n_calls):
     """Lower bound of a particle step: exact drag update plus three Langevin normals."""
     vel = np.empty(3)

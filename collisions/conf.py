@@ -1,6 +1,6 @@
 """Shared numba flags of the collision kernels (kept in one place).
 
-JIT_FLAGS     every jitted function: compiled once, cached on disk.
+JIT_FLAGS     every jitted function: compiled once, cached on disk, its flags stated (jitcache).
 KERNEL_FLAGS  functions that take arrays but never allocate one: compiled without the numba
               runtime's reference counting (``_nrt=False``).  Measured reason: every array
               argument of a call that LLVM does not inline costs an atomic incref/decref pair,
@@ -30,10 +30,10 @@ LOOP_FLAGS    the tracking kernel's parcel loop (with what is inlined into it): 
 
 from numba import njit
 
-from jitcache import guard_numba_cache
+from jitcache import JIT_FLAGS, guard_numba_cache
 
-JIT_FLAGS = {"cache": True}
-KERNEL_FLAGS = {"cache": True, "_nrt": False}
+JIT_FLAGS = dict(JIT_FLAGS)  # cached, with fastmath, error model and nrt stated (jitcache)
+KERNEL_FLAGS = {**JIT_FLAGS, "_nrt": False}
 LOOP_FLAGS = {**KERNEL_FLAGS, "error_model": "numpy", "fastmath": {"contract", "arcp", "nsz"}}
 
 

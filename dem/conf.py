@@ -6,9 +6,9 @@ PARALLEL_FLAGS   kernels with a ``prange`` over grains or nodes.  Every such loo
                  result does not depend on the thread count (bit-identical for 1 and N threads).
 """
 
-from jitcache import guard_numba_cache
+from jitcache import JIT_FLAGS, guard_numba_cache
 
 guard_numba_cache()  # numba's on-disk cache: no stale kernels, no clashing writers (jitcache)
 
-JIT_FLAGS = {"cache": True}
-PARALLEL_FLAGS = {"cache": True, "parallel": True}
+JIT_FLAGS = dict(JIT_FLAGS)  # cached, with fastmath, error model and nrt stated (jitcache)
+PARALLEL_FLAGS = {**JIT_FLAGS, "parallel": True}

@@ -1,8 +1,25 @@
 """numba's on-disk cache, made safe for the project's compiled packages.
 
 Infrastructure below every package: each compiled package (``rans``, ``particles``,
-``collisions``, ``dem``) imports it and installs its two guards on import
-(:func:`guard_numba_cache`; once per process):
+``collisions``, ``dem``) takes its numba flags from here (``JIT_FLAGS``) and installs these
+guards on import (:func:`guard_numba_cache`; once per process):
+
+* **Flags stated, not inherited.** A function whose fastmath, error model or reference
+  counting is not set takes them from the first jitted caller that compiles it, and keeps that
+  compilation (in memory and on disk) for every later caller.  The tracking kernel's loop runs
+  with fast-math flags (``collisions.conf.LOOP_FLAGS``): the collision helpers, the forces, the
+  random numbers and ``rans.mesh.cell_index`` were compiled with them when the tracker came
+  first in a process, without them when a test or another kernel had called them first.  A
+  four-way test pass differed by 7 · 10⁻¹⁶ (relative) after five collision helpers had been
+  called from Python before it, 1–4 · 10⁻¹⁵ after the collision or tracking tests, and by up
+  to 3–4 · 10⁻¹¹ between processes with other histories (Dask workers against the local
+  process).  ``JIT_FLAGS`` states all three (no fast-math, Python's error model, reference
+  counting on), so every function is compiled the same whoever calls it first; the loop's own
+  flags apply to its code and to the kernels numba inlines into it.
+* **The flags in the cache key.** numba's cache key holds neither: one function compiled with
+  two flag sets (``dem.transfer``'s serial and parallel transfers, the inlined copies of
+  ``collisions.conf.inlined``) shares one entry, which serves whichever was saved first.  The
+  key of every function of the compiled packages also holds its dispatcher's options.
 
 * **Stale kernels.** numba keys a cached function by its own bytecode and closure and
   invalidates it when *its own* source file changes; code it calls or inlines from other files
@@ -31,6 +48,12 @@ import hashlib
 import os
 from pathlib import Path
 
+#: the options every numba function of the compiled packages states: without them numba takes
+#: fastmath, error_model and reference counting (nrt) from the first caller that compiles it
+EXPLICIT_FLAGS = {"fastmath": False, "error_model": "python", "_nrt": True}
+#: a plain compiled function, cached on disk
+JIT_FLAGS = {"cache": True, **EXPLICIT_FLAGS}
+
 #: the packages with numba functions: theirs carry the source digest in their cache key, and
 #: their sources make it (darcy, tfm and eulag compile nothing)
 PROJECT_PACKAGES = ("rans", "particles", "collisions", "dem")
@@ -56,19 +79,35 @@ def guard_numba_cache():
     except ImportError:
         return
     if not getattr(caching.Cache, "_eulag_digest", None):
+        from numba.core.dispatcher import Dispatcher
+
         digest = source_digest()
         index_key = caching.Cache._index_key
+        enable_caching = Dispatcher.enable_caching
 
         def keyed(self, sig, codegen):
             key = index_key(self, sig, codegen)
             module = getattr(self._py_func, "__module__", None) or ""
             if module.split(".")[0] in PROJECT_PACKAGES:
-                return key[:-1] + (tuple(key[-1]) + (digest,),)
+                return key[:-1] + (tuple(key[-1]) + (digest, getattr(self, "_eulag_options", "")),)
             return key
+
+        def caching_with_options(self):
+            enable_caching(self)
+            self._cache._eulag_options = _options_key(self.targetoptions)
 
         caching.Cache._index_key = keyed
         caching.Cache._eulag_digest = digest
+        Dispatcher.enable_caching = caching_with_options
     _serialise_writers(caching)
+
+
+def _options_key(options):
+    """The dispatcher's options as a string that is the same in every process (a set, e.g. of
+    fast-math flags, in sorted order: its own order follows the string hashes of the process)."""
+    def canonical(v):
+        return repr(sorted(v)) if isinstance(v, (set, frozenset)) else repr(v)
+    return ";".join(f"{k}={canonical(v)}" for k, v in sorted(options.items()))
 
 
 def _serialise_writers(caching):

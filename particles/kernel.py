@@ -1010,7 +1010,7 @@ def _build_trackers(options):
 
     # nogil: a super-batch streamed window by window runs beside the gas solve that feeds it
     # its fields (particles.stream)
-    track_windows = njit(parallel=True, nogil=True, cache=True)(
+    track_windows = njit(parallel=True, nogil=True, **JIT_FLAGS)(
         _with_globals(track_windows, _TRACK_BATCH_WINDOWS=track_batch_windows))
 
     def track_superbatch(starts, counts, seed, pass_, x_edges, r_edges, rc, nt, length, radius, nu,
@@ -1031,7 +1031,7 @@ def _build_trackers(options):
                              states[starts[b0 + s] - starts[0]:starts[b0 + s] - starts[0] + counts[b0 + s]])
             fold_batches(scratch, nin, totals, squares, cross, n_acc_cells)
 
-    track_superbatch = njit(parallel=True, nogil=True, cache=True)(
+    track_superbatch = njit(parallel=True, nogil=True, **JIT_FLAGS)(
         _with_globals(track_superbatch, _TRACK_BATCH=track_batch))
     # what the compiled code must report (options equal to these reuse this memoised pair,
     # though their repr may differ: 1.0 against np.float64(1.0))

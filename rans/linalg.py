@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from jitcache import JIT_FLAGS
 from scipy.sparse.linalg import splu
 
 __all__ = ["AndersonMixing", "BlockStructure", "BlockLU", "LaggedFactor", "LaggedSparseLU"]
@@ -86,7 +88,7 @@ class BlockStructure:
         return BlockLU(D.reshape(nr, nt, nt), L.reshape(nr, nt), U.reshape(nr, nt))
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _blocks(nr, nt, diag, a_PN, a_NP, diag_index, d_PN, d_NP, f_same, u_out, l_out, f_out, l_in, u_in, f_in):
     """The blocks of :meth:`BlockStructure.factor` (flat): each entry summed in the order of
     ``np.add.at`` over the same index lists (entries of faces that share a cell pair add up, as
@@ -112,7 +114,7 @@ def _blocks(nr, nt, diag, a_PN, a_NP, diag_index, d_PN, d_NP, f_same, u_out, l_o
     return D, L, U
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _row_dominant(diag, a_PN, a_NP, P, N):
     """Whether |diag| >= (the row's sum of |off-diagonal| entries)(1 - 1e-12) in every row (the
     sums over P and over N taken apart and then added, as two ``np.bincount`` would)."""
@@ -151,7 +153,7 @@ class BlockLU:
         return x
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _factor(D, L, U, inv_t):
     """inv_t[j] = (D'_j⁻¹)ᵀ with D'_j = D_j − diag(L_j) D'_{j−1}⁻¹ diag(U_{j−1}); returns the first
     ring whose block is singular or not finite, −1 if none."""
@@ -175,7 +177,7 @@ def _factor(D, L, U, inv_t):
     return -1
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _solve(inv_t, L, U, b, x):
     nr, nt, _ = inv_t.shape
     y = np.empty(nt)
@@ -204,7 +206,7 @@ def _solve(inv_t, L, U, b, x):
             x[j * nt + a] -= acc[a]
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _block_products(inv_t, j, y1, y2, acc1, acc2):
     """acc = D'_j⁻¹ y for two vectors at once (the order of :func:`_solve`'s sums)."""
     nt = y1.size
@@ -219,7 +221,7 @@ def _block_products(inv_t, j, y1, y2, acc1, acc2):
             acc2[a] += m * yc2
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _solve2(inv_t, L, U, b1, b2, x1, x2):
     """:func:`_solve` for two right-hand sides in one pass over the factorisation (each
     solution with the arithmetic of :func:`_solve`)."""
@@ -533,7 +535,7 @@ def _gmres(A, precondition, b, x0, m, target):
     return x0 + y @ Z[:k], k
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _refine(inv_t, L, U, diag, a_PN, a_NP, P, N, b, x, floor, rtol, max_sweeps):
     """:meth:`LaggedFactor.solve`'s refinement with a block LU, compiled: x (out) = the solution
     with the held factorisation, refined; returns the sweeps it took, negated when the
@@ -553,7 +555,7 @@ def _refine(inv_t, L, U, diag, a_PN, a_NP, P, N, b, x, floor, rtol, max_sweeps):
     return -max_sweeps
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _sweep(x, dx, last, slowest, sweep, floor, rtol, max_sweeps):
     """x += dx, and the refinement's verdict after sweep ``sweep`` (one rule for :func:`_refine`
     and :func:`_refine2`): (verdict, this step, the slowest contraction so far); verdict
@@ -579,7 +581,7 @@ def _sweep(x, dx, last, slowest, sweep, floor, rtol, max_sweeps):
     return 0, step, slowest
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _refine2(inv_t, L, U, diag, a_PN, a_NP, P, N, b1, b2, x1, x2, floor, rtol, max_sweeps):
     """:func:`_refine` for two right-hand sides: each with its own sweeps, stopping rule and
     arithmetic exactly as :func:`_refine` alone; their block solves share one pass over the
@@ -613,7 +615,7 @@ def _refine2(inv_t, L, U, diag, a_PN, a_NP, P, N, b1, b2, x1, x2, floor, rtol, m
     return res1, res2
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _residual(diag, a_PN, a_NP, P, N, x, b, r):
     """r = b − A x."""
     for i in range(x.size):
@@ -623,7 +625,7 @@ def _residual(diag, a_PN, a_NP, P, N, x, b, r):
         r[N[f]] -= a_NP[f] * x[P[f]]
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _relative_step(dx, x, floor):
     """max_i |dx_i| / (|x_i| + floor · max_j |x_j|): the relative change of the last
     refinement, per cell; inf if not finite."""

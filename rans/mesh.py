@@ -26,6 +26,8 @@ import math
 from dataclasses import dataclass, field
 
 import numba
+
+from jitcache import JIT_FLAGS
 import numpy as np
 from fluids.friction import Colebrook
 
@@ -138,7 +140,7 @@ def radial_edges(radius, radial_cells, wall_thickness):
     return edges
 
 
-@numba.njit(cache=True)
+@numba.njit(**JIT_FLAGS)
 def cell_index(x, r, th, length, nx, r_edges, nt, ring_hint=-1):
     """Cell indices (i, j, k) of a point at axial x [m], radius r [m] and polar angle
     th in [0, 2 pi) [rad]; i = -1 outside the pipe.  Axial cells are uniform; ring j from a
@@ -172,7 +174,7 @@ def cell_index(x, r, th, length, nx, r_edges, nt, ring_hint=-1):
     return i, lo, k
 
 
-@numba.njit(cache=True)
+@numba.njit(**JIT_FLAGS)
 def locate_cell(x, y, z, length, nx, r_edges, nt):
     """Cell indices (i, j, k) containing the point (x, y, z) [m], or i = -1 outside.
 
@@ -335,7 +337,7 @@ class PipeMesh:
         return self._geo["section"]
 
 
-@numba.njit(cache=True)
+@numba.njit(**JIT_FLAGS)
 def _locate_many(x, y, z, length, nx, r_edges, nt):
     n = x.shape[0]
     out = np.empty((3, n), dtype=np.int64)

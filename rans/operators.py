@@ -26,6 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
+from jitcache import JIT_FLAGS
+
 from .linalg import BlockStructure, LaggedFactor
 
 __all__ = ["CoupledCrossFlow", "Section"]
@@ -263,7 +265,7 @@ class Section:
 _SCHEMES = {"upwind": 0, "central": 1, "hybrid": 2}
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _transport(P, N, S, delta, w, om, flux, gamma_f, n, scheme):
     """:meth:`Section.transport` compiled: per face D = gamma_f S / delta and the row
     coefficients cP, cN of the scheme (0 upwind, 1 central, 2 hybrid); returns (the face sums
@@ -292,7 +294,7 @@ def _transport(P, N, S, delta, w, om, flux, gamma_f, n, scheme):
     return face_sums(P, N, cP, cN, n), -cP, -cN
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _radial_correction(c_ptr, c_idx, c_val, d_ptr, d_idx, d_val, S, gamma_f, phi):
     """:meth:`Section.radial_gradient_correction` compiled: q_f = gamma_f S_f (corr phi)_f over the
     corrected faces (the first ones), then its cell sums (the two CSR products of the array
@@ -306,7 +308,7 @@ def _radial_correction(c_ptr, c_idx, c_val, d_ptr, d_idx, d_val, S, gamma_f, phi
     return out
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _dirichlet_gradient(P, N, S, nz, ny, delta, wall, wall_chord, wall_nz, wall_ny, wall_distance, Tinv, phi,
                         wall_value):
     """:meth:`Section.gradient` with one wall value for every wall face, compiled: (d/dz, d/dy)."""
@@ -317,7 +319,7 @@ def _dirichlet_gradient(P, N, S, nz, ny, delta, wall, wall_chord, wall_nz, wall_
                         wall_nz, wall_ny, Tinv, True)
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _interp(P, N, om, w, phi):
     out = np.empty(P.size)
     for f in range(P.size):
@@ -325,7 +327,7 @@ def _interp(P, N, om, w, phi):
     return out
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _normal_difference(P, N, delta, phi):
     out = np.empty(P.size)
     for f in range(P.size):
@@ -333,7 +335,7 @@ def _normal_difference(P, N, delta, phi):
     return out
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _reconstruct(P, N, S, nz, ny, g, n, wall, wall_chord, g_wall, wall_nz, wall_ny, Tinv, has_wall):
     """:meth:`Section.reconstruct` compiled (the face sums by :func:`face_sums`)."""
     sz = np.empty(P.size)
@@ -472,7 +474,7 @@ def matvec(A, x):
     return y
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _csr_matvec(indptr, indices, data, x, y):
     for i in range(y.size):
         s = 0.0
@@ -481,7 +483,7 @@ def _csr_matvec(indptr, indices, data, x, y):
         y[i] = s
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def face_sums(P, N, on_P, on_N, n):
     """Per cell: the sum of ``on_P`` over the faces whose P is the cell, plus the sum of ``on_N``
     over those whose N is (each in face order from zero, then added: bit-identical to the

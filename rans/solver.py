@@ -34,6 +34,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
+
+from jitcache import JIT_FLAGS
 from scipy.sparse.linalg import splu
 
 from . import kepsilon as ke
@@ -605,7 +607,7 @@ class _StationSolver:
         return uz, uy, p, flux
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _simplec_fluxes(P, N, S, delta, w, om, nz, ny, aPN, aNP, diag_m, drag_diag, A, uz, uy, Rz, Ry, g, rho,
                     div_ptr, div_idx, div_val, fsum_ptr, fsum_idx, fsum_val):
     """The SIMPLEC step's momentum interpolation (_StationSolver._cross_flow_simplec): the
@@ -641,7 +643,7 @@ def _simplec_fluxes(P, N, S, delta, w, om, nz, ny, aPN, aNP, diag_m, drag_diag, 
     return dP, flux, imbalance, coef, diag_p
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _strain_squared(P, N, S, nz, ny, delta, wall, wall_chord, wall_nz, wall_ny, wall_distance, Tinv, ux, uz, uy,
                     hist_ux, c0, dx):
     """G^2 = (du_x/dz)^2 + (du_x/dy)^2 + 2 (du_z/dz)^2 + 2 (du_y/dy)^2 + (du_z/dy + du_y/dz)^2
@@ -661,7 +663,7 @@ def _strain_squared(P, N, S, nz, ny, delta, wall, wall_chord, wall_nz, wall_ny, 
     return G2
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _changes(ux, ux0, uy, uy0, uz, uz0, k, k0, eps, eps0):
     """(largest |velocity change|, largest |k/k0 - 1| or |eps/eps0 - 1|) of an outer iteration."""
     cu = 0.0
@@ -672,7 +674,7 @@ def _changes(ux, ux0, uy, uy0, uz, uz0, k, k0, eps, eps0):
     return cu, ct
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _first_bad(values, positive):
     """The first entry that is not finite (or, with ``positive``, not > 0); -1 if none."""
     for i in range(values.size):
@@ -694,7 +696,7 @@ def _cell_array(c, like):
     return np.full(like.size, float(c)) if np.ndim(c) == 0 else np.ascontiguousarray(c, dtype=np.float64)
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _upwind_transport(P, N, S, delta, w, om, flux, mu, mut, sigma, n):
     """Section.transport(flux, Section.interp(mu + mut / sigma), "upwind"), with the same
     arithmetic per entry: (diagonal, a_PN, a_NP)."""
@@ -704,7 +706,7 @@ def _upwind_transport(P, N, S, delta, w, om, flux, mu, mut, sigma, n):
     return _transport(P, N, S, delta, w, om, flux, _interp(P, N, om, w, gc), n, 0)
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _relax_implicitly(d, b, x, relax):
     """Patankar's implicit under-relaxation of the rows (d, b) about the iterate x."""
     s = (1.0 - relax) / relax
@@ -713,7 +715,7 @@ def _relax_implicitly(d, b, x, relax):
         d[i] = d[i] / relax
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _k_equation(P, N, S, delta, w, om, flux, mu, mut, sigma, c0, ax, rho, A, eps_sink, k_it, Sk, kref, hist_k, Pk,
                 relax):
     """Matrix (diagonal, a_PN, a_NP) and right-hand side of the k equation of an outer
@@ -731,7 +733,7 @@ def _k_equation(P, N, S, delta, w, om, flux, mu, mut, sigma, c0, ax, rho, A, eps
     return d, b, aPN, aNP
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _eps_equation(P, N, S, delta, w, om, flux, mu, mut, sigma, c0, ax, rho, A, e_it, k_it, Se, eref, hist_e, Pk, Sk,
                   kref, c1, c2, c3, relax):
     """As :func:`_k_equation` for epsilon (before its wall values): diag + c0 ax + C2 rho A eps/k +
@@ -1257,7 +1259,7 @@ def _cycling(changes, tol):
     return _cycling_kernel(c, float(tol), CYCLE_PERIODS, CYCLE_PERIOD_MAX, CYCLE_MATCH)
 
 
-@njit(cache=True)
+@njit(**JIT_FLAGS)
 def _cycling_kernel(c, tol, periods, period_max, match):
     """:func:`_cycling` on the last changes ``c`` (compiled)."""
     m = c.size

@@ -540,4 +540,33 @@ def test_cache_keys_of_the_compiled_packages_hold_their_sources_digest(tmp_path)
     for fn, ours in ((sommerfeld_2001_correlation.py_func, True), (fold_batches.py_func, True),
                      (njit(foreign).py_func, False)):
         key = FunctionCache(fn)._index_key((), njit(foreign).targetctx.codegen())
-        assert (key[-1][-1] == digest) == ours, fn
+        assert (digest in key[-1]) == ours, fn
+
+
+def test_every_compiled_function_states_the_flags_numba_would_inherit():
+    """numba compiles a function whose fastmath, error_model or nrt is unset with those of the
+    first jitted caller and keeps that compilation: the helpers called from the fast-math
+    tracking loop then depended on who called them first (a four-way pass moved by 1e-15 to
+    4e-11 with the process's history).  Every numba function of the compiled packages states
+    them (jitcache.JIT_FLAGS), and the cache key holds each function's options."""
+    import importlib
+    import pkgutil
+
+    from numba.core.dispatcher import Dispatcher
+
+    import jitcache
+    from particles.kernel import make_motion, make_tracker
+
+    found = []
+    for pkg in jitcache.PROJECT_PACKAGES:
+        for info in pkgutil.iter_modules(importlib.import_module(pkg).__path__):
+            mod = importlib.import_module(f"{pkg}.{info.name}")
+            found += [(f"{pkg}.{info.name}.{k}", v) for k, v in vars(mod).items() if isinstance(v, Dispatcher)]
+    found += [("make_motion()", make_motion(PhysicsOptions()))]
+    found += [(f"make_tracker()[{i}]", d) for i, d in enumerate(make_tracker(PhysicsOptions()))]
+    assert len(found) > 80, len(found)
+    unset = [name for name, d in found
+             if not {"fastmath", "error_model", "_nrt"} <= set(d.targetoptions)]
+    assert not unset, unset
+    keys = {jitcache._options_key(d.targetoptions) for _, d in found}
+    assert len(keys) > 2  # plain, kernel (no reference counting), loop (fast-math), parallel, ...
