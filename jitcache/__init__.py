@@ -14,8 +14,8 @@ guards on import (:func:`guard_numba_cache`; once per process):
   called from Python before it, 1–4 · 10⁻¹⁵ after the collision or tracking tests, and by up
   to 3–4 · 10⁻¹¹ between processes with other histories (Dask workers against the local
   process).  ``JIT_FLAGS`` states all three (no fast-math, Python's error model, reference
-  counting on), so every function is compiled the same whoever calls it first; the loop's own
-  flags apply to its code and to the kernels numba inlines into it.
+  counting on; ``collisions.conf`` gives every dilute-phase kernel the loop's fast-math flags
+  and error model), so every function is compiled the same whoever calls it first.
 * **The flags in the cache key.** numba's cache key holds neither: one function compiled with
   two flag sets (``dem.transfer``'s serial and parallel transfers, the inlined copies of
   ``collisions.conf.inlined``) shares one entry, which serves whichever was saved first.  The
