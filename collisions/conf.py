@@ -37,9 +37,10 @@ from jitcache import JIT_FLAGS, guard_numba_cache
 #: numpy's error model and the three fast-math flags of the parcel loop (LOOP_FLAGS), stated
 #: for every kernel of the dilute phase (collisions, particles): the helpers the loop calls are
 #: compiled with the loop's arithmetic whoever calls them first (jitcache: numba would give
-#: them the first caller's flags).  Measured on the 2-core machine, idle: with the helpers on
-#: numba's default flags the kernel ran 2.79, 3.58 and 2.01 M parcel-steps/s per core
-#: (``python -m particles.bench``) against 3.10, 3.89 and 2.12 M before.
+#: them the first caller's flags).  Measured on the 2-core machine, idle (``python -m
+#: particles.bench``: full physics, drag only, studies' grid): 3.14, 3.77 and 2.06 M
+#: parcel-steps/s per core with these flags, 2.79, 3.58 and 2.01 M with numba's defaults on
+#: the helpers (3.10, 3.89 and 2.12 M when the helpers took them from the loop unstated).
 FAST_FLAGS = {"error_model": "numpy", "fastmath": {"contract", "arcp", "nsz"}}
 JIT_FLAGS = {**JIT_FLAGS, **FAST_FLAGS}  # cached, with fastmath, error model and nrt stated
 KERNEL_FLAGS = {**JIT_FLAGS, "_nrt": False}

@@ -16,10 +16,11 @@ guards on import (:func:`guard_numba_cache`; once per process):
   process).  ``JIT_FLAGS`` states all three (no fast-math, Python's error model, reference
   counting on; ``collisions.conf`` gives every dilute-phase kernel the loop's fast-math flags
   and error model), so every function is compiled the same whoever calls it first.
-* **The flags in the cache key.** numba's cache key holds neither: one function compiled with
-  two flag sets (``dem.transfer``'s serial and parallel transfers, the inlined copies of
-  ``collisions.conf.inlined``) shares one entry, which serves whichever was saved first.  The
-  key of every function of the compiled packages also holds its dispatcher's options.
+* **The flags in the cache key.** numba's cache key holds no options: one function compiled
+  with two flag sets (``dem.transfer``'s serial and parallel transfers) shares one entry, which
+  serves whichever was saved first.  The key of every function of the compiled packages also
+  holds its dispatcher's options.  (Settings numba reads from the environment, e.g.
+  ``NUMBA_OPT``, are still not in it.)
 
 * **Stale kernels.** numba keys a cached function by its own bytecode and closure and
   invalidates it when *its own* source file changes; code it calls or inlines from other files
@@ -29,9 +30,10 @@ guards on import (:func:`guard_numba_cache`; once per process):
   collision partners' correlation R(St) = exp(−0.56 St^0.4) instead of −0.55 in
   ``collisions/interparticle.py`` a four-way pass from the existing cache gave the former
   result bit for bit (37,898 collisions), from an empty cache another one (37,913 collisions,
-  sources 0.26 % apart).  The key of every function of the compiled packages now also holds a
-  digest of their sources (every ``.py`` file of ``PROJECT_PACKAGES``): any edit compiles
-  afresh, and a cache filled by other code is never served.
+  sources 0.26 % apart).  The cache index of every function defined in the compiled packages'
+  files now carries a digest of their sources (every ``.py`` file of ``PROJECT_PACKAGES``) in
+  its source stamp: after any edit numba discards the index and compiles afresh (reusing the
+  data files, so the cache does not grow), and a cache filled by other code is never served.
 * **Writers at the same time.** ``IndexDataCacheFile.save`` reads the index, picks the first
   free data-file number, and writes both back, unlocked: two processes compiling different
   variants of one function (the tracking kernels are closures built per option set) can both
@@ -54,48 +56,75 @@ EXPLICIT_FLAGS = {"fastmath": False, "error_model": "python", "_nrt": True}
 #: a plain compiled function, cached on disk
 JIT_FLAGS = {"cache": True, **EXPLICIT_FLAGS}
 
-#: the packages with numba functions: theirs carry the source digest in their cache key, and
+#: the packages with numba functions: theirs carry the source digest in their cache stamp, and
 #: their sources make it (darcy, tfm and eulag compile nothing)
 PROJECT_PACKAGES = ("rans", "particles", "collisions", "dem")
 
 
+_ROOT = Path(__file__).resolve().parents[1]  # the directory that holds the packages
+
+
 def source_digest(root: Path | None = None) -> str:
     """sha256 over the path and bytes of every ``.py`` file of ``PROJECT_PACKAGES`` under
-    ``root`` (default: the directory that holds this package)."""
-    root = Path(__file__).resolve().parents[1] if root is None else Path(root)  # beside this package
+    ``root`` (default: the directory that holds this package); raises if it finds none."""
+    root = _ROOT if root is None else Path(root)
     h = hashlib.sha256()
+    n = 0
     for pkg in PROJECT_PACKAGES:
         for f in sorted((root / pkg).glob("*.py")):
             h.update(f"{pkg}/{f.name}\0".encode())
             h.update(f.read_bytes())
             h.update(b"\0")
+            n += 1
+    if n == 0:
+        raise RuntimeError(f"jitcache: no source files of {PROJECT_PACKAGES} under {root}")
     return h.hexdigest()
 
 
-def guard_numba_cache():
-    """Install both guards of the module docstring (idempotent)."""
+def _ours(py_func) -> bool:
+    """Whether ``py_func`` is defined in a file of the compiled packages (also when its module
+    runs as ``__main__``)."""
     try:
-        from numba.core import caching
+        f = Path(py_func.__code__.co_filename).resolve()
+    except (AttributeError, OSError):
+        return False
+    return f.parent.parent == _ROOT and f.parent.name in PROJECT_PACKAGES
+
+
+def guard_numba_cache():
+    """Install the guards of the module docstring (idempotent).  The digest goes into the
+    source stamp of the functions' cache index, which numba compares on every load: an index
+    written from other sources is discarded and its data files are reused, so the cache does not
+    grow with every edit.  The options go into each entry's key."""
+    try:
+        import numba  # noqa: F401 - the guard has nothing to do without numba
     except ImportError:
         return
-    if not getattr(caching.Cache, "_eulag_digest", None):
-        from numba.core.dispatcher import Dispatcher
+    from numba.core import caching  # a numba without these internals fails here, loudly
+    from numba.core.dispatcher import Dispatcher
 
+    if not getattr(caching.Cache, "_eulag_digest", None):
         digest = source_digest()
+        init = caching.Cache.__init__
         index_key = caching.Cache._index_key
         enable_caching = Dispatcher.enable_caching
 
+        def init_stamped(self, py_func):
+            init(self, py_func)
+            if _ours(py_func):
+                self._cache_file._source_stamp = (self._cache_file._source_stamp, digest)
+
         def keyed(self, sig, codegen):
             key = index_key(self, sig, codegen)
-            module = getattr(self._py_func, "__module__", None) or ""
-            if module.split(".")[0] in PROJECT_PACKAGES:
-                return key[:-1] + (tuple(key[-1]) + (digest, getattr(self, "_eulag_options", "")),)
+            if _ours(self._py_func):
+                return key[:-1] + (tuple(key[-1]) + (getattr(self, "_eulag_options", ""),),)
             return key
 
         def caching_with_options(self):
             enable_caching(self)
             self._cache._eulag_options = _options_key(self.targetoptions)
 
+        caching.Cache.__init__ = init_stamped
         caching.Cache._index_key = keyed
         caching.Cache._eulag_digest = digest
         Dispatcher.enable_caching = caching_with_options
