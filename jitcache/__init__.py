@@ -47,7 +47,9 @@ guards on import (:func:`guard_numba_cache`; once per process):
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import os
+import sys
 from pathlib import Path
 
 #: the options every numba function of the compiled packages states: without them numba takes
@@ -61,17 +63,24 @@ JIT_FLAGS = {"cache": True, **EXPLICIT_FLAGS}
 PROJECT_PACKAGES = ("rans", "particles", "collisions", "dem")
 
 
-_ROOT = Path(__file__).resolve().parents[1]  # the directory that holds the packages
+def _package_dir(pkg: str) -> Path:
+    """The directory the package ``pkg`` is imported from (an installed copy or a source tree:
+    wherever its import resolves in this process)."""
+    mod = sys.modules.get(pkg)
+    spec = mod.__spec__ if mod is not None and mod.__spec__ is not None else importlib.util.find_spec(pkg)
+    if spec is None or not spec.submodule_search_locations:
+        raise RuntimeError(f"jitcache: package {pkg!r} not found")
+    return Path(list(spec.submodule_search_locations)[0]).resolve()
 
 
 def source_digest(root: Path | None = None) -> str:
-    """sha256 over the path and bytes of every ``.py`` file of ``PROJECT_PACKAGES`` under
-    ``root`` (default: the directory that holds this package); raises if it finds none."""
-    root = _ROOT if root is None else Path(root)
+    """sha256 over the path and bytes of every ``.py`` file of ``PROJECT_PACKAGES``, under
+    ``root`` if given, else where each package is imported from; raises if it finds none."""
     h = hashlib.sha256()
     n = 0
     for pkg in PROJECT_PACKAGES:
-        for f in sorted((root / pkg).glob("*.py")):
+        d = Path(root) / pkg if root is not None else _package_dir(pkg)
+        for f in sorted(d.glob("*.py")):
             h.update(f"{pkg}/{f.name}\0".encode())
             h.update(f.read_bytes())
             h.update(b"\0")
@@ -82,13 +91,14 @@ def source_digest(root: Path | None = None) -> str:
 
 
 def _ours(py_func) -> bool:
-    """Whether ``py_func`` is defined in a file of the compiled packages (also when its module
-    runs as ``__main__``)."""
+    """Whether ``py_func`` is defined in a file of one of the compiled packages (by the
+    package directory's name, wherever it is installed; also when its module runs as
+    ``__main__``)."""
     try:
-        f = Path(py_func.__code__.co_filename).resolve()
-    except (AttributeError, OSError):
+        f = Path(py_func.__code__.co_filename)
+    except AttributeError:
         return False
-    return f.parent.parent == _ROOT and f.parent.name in PROJECT_PACKAGES
+    return f.parent.name in PROJECT_PACKAGES and (f.parent / "__init__.py").is_file()
 
 
 def guard_numba_cache():
