@@ -46,6 +46,7 @@ Collision velocity jumps are not part of J, so the momentum budget
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import types
 import warnings
@@ -77,7 +78,7 @@ from .layout import (A_BETA, A_J, A_MUV, A_PP, A_PPK, CS_APP, CS_COV, A_KSEEN, A
                      P_RHO_P, P_SPEEDMAX, P_STEP, P_TCAP, P_U0, P_VMIN, P_WINDOW, S_EXITED, S_LOST,
                      S_STUCK, W_ANGLE, W_COUNT, W_SPEED)
 
-__all__ = ["PhysicsOptions", "make_motion", "make_tracker", "make_window_tracker", "fold_batches",
+__all__ = ["PhysicsOptions", "kernel_options", "make_motion", "make_tracker", "make_window_tracker", "fold_batches",
            "walk_segment", "MAX_SEGMENTS"]
 
 # The parallel super-batch driver calls the (cached) batch kernel inside prange; numba cannot
@@ -463,6 +464,35 @@ def tracker_variant(options):
     a kernel for another option set — served by a numba cache that concurrent processes
     corrupted — cannot go unnoticed."""
     return float(zlib.crc32(repr(options).encode()))
+
+
+def kernel_options(options):
+    """``options`` with the switches its kernel does not read set to their defaults: the
+    partners' correlation and momentum and the collision options without inter-particle
+    collisions, the drift's form without the drift correction (or without the Langevin model,
+    which carries it), the Magnus model without Magnus lift.  Option sets that differ only in
+    those compile to the same code and share one kernel (one compilation, one cache entry); a
+    two-way run and a four-way run's ablations then do not each compile their own."""
+    default = PhysicsOptions()
+    changes = {}
+    if not options.inter_particle_collisions:
+        changes.update(partner_correlation=default.partner_correlation,
+                       partner_momentum=default.partner_momentum,
+                       interparticle=InterparticleOptions(rotation=options.rotation))
+    if not options.langevin:
+        changes["drift_correction"] = default.drift_correction
+    if not (options.langevin and options.drift_correction):
+        changes["drift_form"] = default.drift_form
+    if not options.magnus_lift:
+        changes["magnus_model"] = default.magnus_model
+    if all(getattr(options, k) == v for k, v in changes.items()):
+        return options
+    return dataclasses.replace(options, **changes)
+
+
+def _trackers(options):
+    """:func:`_build_trackers` for the kernel's options (:func:`kernel_options`)."""
+    return _build_trackers(kernel_options(options))
 
 
 @lru_cache(maxsize=None)
@@ -1060,7 +1090,7 @@ def make_tracker(options=PhysicsOptions()):
     does not depend on the thread count; ``states`` (parcels of the super-batch, NSTATE)
     receives the final parcel states.
     """
-    return _build_trackers(options)[:2]
+    return _trackers(options)[:2]
 
 
 def make_window_tracker(options=PhysicsOptions()):
@@ -1075,7 +1105,7 @@ def make_window_tracker(options=PhysicsOptions()):
     it gives the super-batch's sums bit for bit as ``track_superbatch`` does, whatever the
     ranges: a batch's operations and their order are the same (particles.stream).
     """
-    return _build_trackers(options)[2]
+    return _trackers(options)[2]
 
 
 @njit(**KERNEL_FLAGS)

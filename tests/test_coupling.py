@@ -83,14 +83,17 @@ def test_resume_from_checkpoint_gives_the_same_dataset(tmp_path, uninterrupted):
 def test_passes_streamed_beside_the_gas_march_give_the_same_dataset(changes):
     """A developing pipe: each pass tracked beside the gas march that feeds it (particles.stream)
     gives the dataset of the passes tracked after it, bit for bit; the pass after the loop
-    converges, streamed with the early passes' parcel count, is tracked again."""
+    converges, streamed with the early passes' parcel count, is tracked again.  A run held to
+    one thread does not stream and gives the same dataset (with the default options: the
+    thread count does not depend on them)."""
     from eulag.output import coupled_dataset
 
     import numba
 
     case = small_case(**{"pipe.mode": "developing", "numerics.axial_cells": 12, **changes})
     runs = []
-    for stream, threads in ((False, 2), (True, 2), (True, 1)):
+    modes = ((False, 2), (True, 2), (True, 1)) if not changes else ((False, 2), (True, 2))
+    for stream, threads in modes:
         old = numba.get_num_threads()
         try:
             numba.set_num_threads(threads)
@@ -99,9 +102,11 @@ def test_passes_streamed_beside_the_gas_march_give_the_same_dataset(changes):
         finally:
             numba.set_num_threads(old)
         runs.append((loop, coupled_dataset(loop)))
-    (plain, a), (streamed, b), (one_thread, c) = runs
-    assert one_thread.streamed == 0  # a run held to one thread keeps to it
-    data_vars_equal(a, c)
+    (plain, a), (streamed, b) = runs[:2]
+    if len(runs) > 2:
+        one_thread, c = runs[2]
+        assert one_thread.streamed == 0  # a run held to one thread keeps to it
+        data_vars_equal(a, c)
     assert plain.streamed == 0 and streamed.streamed >= len(streamed.history.residual) - 3
     assert streamed.timings["lagrangian_after_gas"] < streamed.timings["lagrangian"]
     data_vars_equal(a, b)

@@ -570,3 +570,41 @@ def test_every_compiled_function_states_the_flags_numba_would_inherit():
     assert not unset, unset
     keys = {jitcache._options_key(d.targetoptions) for _, d in found}
     assert len(keys) > 2  # plain, kernel (no reference counting), loop (fast-math), parallel, ...
+
+
+def test_option_sets_that_compile_to_the_same_code_share_one_kernel():
+    """Switches the kernel does not read (the partners' law without inter-particle collisions,
+    the drift's form without the drift correction, the Magnus model without Magnus lift) do
+    not make a kernel of their own: one compilation serves them all.  Switches it reads do."""
+    import dataclasses
+
+    from collisions import InterparticleOptions
+    from particles.kernel import kernel_options, make_tracker, make_window_tracker
+
+    two_way = PhysicsOptions(inter_particle_collisions=False)
+    variants = [dataclasses.replace(two_way, partner_momentum="returned"),
+                dataclasses.replace(two_way, partner_correlation="cell",
+                                    interparticle=InterparticleOptions(restitution=0.5, covariance="full")),
+                dataclasses.replace(two_way, drift_correction=False, drift_form="particle"),
+                dataclasses.replace(two_way, magnus_lift=False, magnus_model="oesterle-bui-dinh")]
+    for v in variants[:2]:
+        assert kernel_options(v) == two_way
+        assert make_tracker(v)[1] is make_tracker(two_way)[1]
+        assert make_window_tracker(v) is make_window_tracker(two_way)
+    assert kernel_options(variants[2]) == dataclasses.replace(two_way, drift_correction=False)
+    assert kernel_options(variants[3]) == dataclasses.replace(two_way, magnus_lift=False)
+    assert kernel_options(PhysicsOptions(langevin=False, drift_correction=False, drift_form="response")) == \
+        PhysicsOptions(langevin=False)
+    # every switch the kernel reads keeps its own kernel
+    four_way = PhysicsOptions()
+    read = [dataclasses.replace(four_way, partner_momentum="returned"),
+            dataclasses.replace(four_way, partner_correlation="cell"),
+            dataclasses.replace(four_way, interparticle=InterparticleOptions(covariance="full")),
+            dataclasses.replace(four_way, drift_form="particle"),
+            dataclasses.replace(four_way, magnus_model="oesterle-bui-dinh"),
+            dataclasses.replace(four_way, step_rule="kolmogorov"),
+            dataclasses.replace(four_way, wall_cell="wall-ring"),
+            two_way]
+    for v in read:
+        assert kernel_options(v) == v
+        assert make_tracker(v)[1] is not make_tracker(four_way)[1]
