@@ -400,12 +400,21 @@ def make_interparticle_collision(options=InterparticleOptions()):
         # c · s_up (with a margin far above round-off) the decision y < Q is known to be false
         # without evaluating R(St) — the same decision and the same draws as the full test.
         if full:
-            # the Cholesky factor L of the covariance matrix (semi-definite: a pivot that round-off
-            # or the blend of two passes leaves at or below zero makes its column zero); its rows
-            # take the place of the rms, |L ξ| ≤ ‖L‖_F |ξ| = sqrt(trace) |ξ| the majorant's bound
+            # with the whole covariance matrix its Cholesky factor L (below) takes the place of
+            # the rms: |L ξ| ≤ ‖L‖_F |ξ| = sqrt(trace) |ξ| the majorant's bound
             sxx = rms_partner[0] * rms_partner[0]
             syy = rms_partner[1] * rms_partner[1]
             szz = rms_partner[2] * rms_partner[2]
+            bound = math.sqrt(sxx + syy + szz)
+        else:
+            bound = max(abs(rms_partner[0]), abs(rms_partner[1]), abs(rms_partner[2]))
+        if y >= c * _upper_speed(vel, mean_own, mean_partner, bound, big_k):
+            if not w < p_tail:
+                return COLLISION_NONE
+        if full:
+            # the Cholesky factor L of the covariance matrix (semi-definite: a pivot that round-off
+            # or the blend of two passes leaves at or below zero makes its column zero), only for
+            # the steps the majorant's test above does not settle
             l00 = math.sqrt(sxx) if sxx > 0.0 else 0.0
             l10 = cov_partner[0] / l00 if l00 > 0.0 else 0.0
             l20 = cov_partner[1] / l00 if l00 > 0.0 else 0.0
@@ -414,12 +423,6 @@ def make_interparticle_collision(options=InterparticleOptions()):
             l21 = (cov_partner[2] - l20 * l10) / l11 if l11 > 0.0 else 0.0
             d22 = szz - l20 * l20 - l21 * l21
             l22 = math.sqrt(d22) if d22 > 0.0 else 0.0
-            bound = math.sqrt(sxx + syy + szz)
-        else:
-            bound = max(abs(rms_partner[0]), abs(rms_partner[1]), abs(rms_partner[2]))
-        if y >= c * _upper_speed(vel, mean_own, mean_partner, bound, big_k):
-            if not w < p_tail:
-                return COLLISION_NONE
         corr = sommerfeld_2001_correlation(stokes)
         ind = math.sqrt(max(0.0, 1.0 - corr * corr))
         # partner velocity u2 = mean_partner + corr (vel - mean_own) + b xi;  g = vel - u2 = a - b xi
