@@ -19,8 +19,8 @@ guards on import (:func:`guard_numba_cache`; once per process):
 * **The flags in the cache key.** numba's cache key holds no options: one function compiled
   with two flag sets (``dem.transfer``'s serial and parallel transfers) shares one entry, which
   serves whichever was saved first.  The key of every function of the compiled packages also
-  holds its dispatcher's options.  (Settings numba reads from the environment, e.g.
-  ``NUMBA_OPT``, are still not in it.)
+  holds its dispatcher's options and numba's compile settings from the environment
+  (``NUMBA_OPT``, ``NUMBA_BOUNDSCHECK``, ``NUMBA_DEBUGINFO``).
 
 * **Stale kernels.** numba keys a cached function by its own bytecode and closure and
   invalidates it when *its own* source file changes; code it calls or inlines from other files
@@ -127,7 +127,7 @@ def guard_numba_cache():
         def keyed(self, sig, codegen):
             key = index_key(self, sig, codegen)
             if _ours(self._py_func):
-                return key[:-1] + (tuple(key[-1]) + (getattr(self, "_eulag_options", ""),),)
+                return key[:-1] + (tuple(key[-1]) + (getattr(self, "_eulag_options", ""), _compile_settings()),)
             return key
 
         def caching_with_options(self):
@@ -139,6 +139,14 @@ def guard_numba_cache():
         caching.Cache._eulag_digest = digest
         Dispatcher.enable_caching = caching_with_options
     _serialise_writers(caching)
+
+
+def _compile_settings():
+    """numba's process-wide settings that change the compiled code (read from the environment:
+    ``NUMBA_OPT``, ``NUMBA_BOUNDSCHECK``, ``NUMBA_DEBUGINFO``), as a string: a kernel compiled
+    unoptimised or with bounds checks for debugging is not served to a normal run."""
+    from numba.core import config
+    return f"opt={config.OPT};boundscheck={config.BOUNDSCHECK};debuginfo={config.DEBUGINFO_DEFAULT}"
 
 
 def _options_key(options):

@@ -608,3 +608,24 @@ def test_option_sets_that_compile_to_the_same_code_share_one_kernel():
     for v in read:
         assert kernel_options(v) == v
         assert make_tracker(v)[1] is not make_tracker(four_way)[1]
+
+
+def test_cache_keys_hold_numba_s_compile_settings(monkeypatch):
+    """A kernel compiled with NUMBA_OPT=0 or bounds checks (a debugging session) is not served
+    from the cache to a run with numba's defaults: the settings are part of the key."""
+    from numba import types
+    from numba.core import config
+    from numba.core.caching import FunctionCache
+
+    from collisions.interparticle import sommerfeld_2001_correlation as fn
+
+    cache = FunctionCache(fn.py_func)
+    codegen = fn.targetctx.codegen()
+    sig = (types.float64,)
+    default = cache._index_key(sig, codegen)
+    assert cache._index_key(sig, codegen) == default
+    monkeypatch.setattr(config, "OPT", 0)
+    assert cache._index_key(sig, codegen) != default
+    monkeypatch.undo()
+    monkeypatch.setattr(config, "BOUNDSCHECK", 1)
+    assert cache._index_key(sig, codegen) != default
