@@ -238,6 +238,22 @@ def test_verlet_list_misses_no_contact():
     assert moved > 1e-3  # grains travelled many skins
     assert np.abs(out[0] - out[1]).max() < 1e-10
 
+    # the rebuild rule's bound: two grains head-on from a gap just beyond the list's reach close
+    # it by twice their own travel, so the list must be rebuilt once a grain has moved half the
+    # skin (a rule of a whole skin lets them pass through each other)
+    skin = 0.2
+    gap = 1.05 * skin * D
+    pair = np.array([[-0.5 * (D + gap), 0.0, 0.0], [0.5 * (D + gap), 0.0, 0.0]])
+    finals = []
+    for s in (skin, 0.0):
+        g = Grains()
+        g.append(pair, np.array([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]]), np.full(2, FREE, dtype=np.int8),
+                 np.arange(2))
+        _run(g, m, 300, dt, grid=CellGrid(-0.01, 0.01, RT, D, skin=s))
+        finals.append(g.vel[:2, 0].copy())
+    assert finals[1] == pytest.approx([-0.5 * E, 0.5 * E], rel=0.02)  # rebounded with restitution e
+    assert np.abs(finals[0] - finals[1]).max() < 1e-12
+
 
 def test_listed_forces_equal_a_brute_force_sum_over_all_pairs():
     """The force and torque on every grain after a step equal the sum of dem.contacts.contact over
