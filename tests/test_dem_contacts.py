@@ -64,7 +64,7 @@ def test_pair_restitution_within_one_percent_of_e():
         assert g.vel[0, 0] + g.vel[1, 0] == 0.0
         assert omax < 2 * v0 * math.sqrt(0.5 * m.mass / K)
     assert np.mean(es) == pytest.approx(E, rel=0.01)
-    assert np.allclose(es, E, rtol=0.025, atol=0)
+    assert np.allclose(es, E, rtol=0.01, atol=0)
 
 
 def test_wall_restitution_within_one_percent_of_e():
