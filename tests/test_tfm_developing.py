@@ -92,7 +92,8 @@ def test_marched_pressure_drop_is_wall_shear_plus_axial_momentum_change():
 
     r = march_pipe(pb, 0.3, solver=s, callback=cb)
     GA, walls, conv, dx = np.array(rec).T
-    # the stored state is the relaxed iterate: the balance holds to the outer tolerance
+    # the stored state is the relaxed iterate: the balance holds to the outer tolerance (a check
+    # of the discretisation's conservation: the rows of the linear systems sum to it)
     assert np.max(np.abs(GA / (walls + conv) - 1.0)) < 5e-3
     st_in = inlet_state(_Solver(pb))
 
@@ -101,8 +102,10 @@ def test_marched_pressure_drop_is_wall_shear_plus_axial_momentum_change():
 
     physical = flux(r.state) - flux(st_in)
     print(f"convected {np.sum(conv * dx):.5g} N, physical {physical:.5g} N, walls {np.sum(walls * dx):.5g} N")
+    # the physical check: the convected momentum the march books equals the change of the
+    # momentum flux between the inlet and the last station
     assert np.sum(conv * dx) == pytest.approx(physical, rel=0.05)   # measured: 2.7 %
-    assert np.sum(GA * dx) == pytest.approx(r.pressure_drop[-1] * s.Atot, rel=1e-12)
+    assert np.sum(GA * dx) == pytest.approx(r.pressure_drop[-1] * s.Atot, rel=1e-12)  # bookkeeping
 
 
 def test_gas_only_march_develops_to_colebrook():
