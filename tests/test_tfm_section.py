@@ -253,3 +253,45 @@ def test_a_mass_flow_that_cannot_enter_at_the_papers_inlet_is_bad_input_for_the_
     with pytest.raises(ValueError, match=r"^solids.mass_flow = 5.0: allowed a mass flow that enters the developing "
                                          r"pipe \(numerics.mode\) at the paper's inlet: inlet solids fraction "):
         validate_two_fluid_case(case)
+
+
+def test_granular_temperature_of_homogeneous_shear(monkeypatch):
+    """The granular-temperature equation in homogeneous shear (uniform α_s, shear rate, drag; no
+    wall flux, no axial convection): conduction vanishes and Θ balances the shear production
+    μ_s γ̇² (the phase viscosity times α_s, eq. 3) against Lun's collisional dissipation and the
+    drag's 3βΘ.  The solver's equation, iterated on its lagged coefficients, reaches the Θ that
+    solves that balance with Gidaspow's viscosity and Lun's dissipation written out here from
+    Ding et al.'s Table 3 (brentq), to 1e-6."""
+    from scipy.optimize import brentq
+
+    import tfm.section as section
+
+    s, st, c = _solve(small_case())
+    pb, P = s.pb, s.pb.params
+    e, rho, d = P.e_ss, pb.rho_s, pb.d_s
+    alpha, shear2, beta = 0.3, 400.0 ** 2, 2.0e4
+    g0 = (1 - 7 * alpha / 16) / (1 - alpha / P.alpha_max) ** 2  # Savage
+
+    def viscosity(th):  # Gidaspow's phase viscosity
+        col = 0.8 * alpha * rho * d * g0 * (1 + e) * math.sqrt(th / math.pi)
+        kin = 10 * rho * d * math.sqrt(math.pi * th) / (96 * alpha * (1 + e) * g0) * (1 + 0.8 * g0 * alpha * (1 + e)) ** 2
+        return col + kin
+
+    def balance(th):
+        dissipation = 12 * (1 - e * e) * g0 * rho * alpha**2 * th**1.5 / (d * math.sqrt(math.pi))
+        return alpha * viscosity(th) * shear2 - dissipation - 3 * beta * th
+
+    expect = brentq(balance, 1e-8, 10.0, xtol=1e-14)
+    monkeypatch.setattr(section, "schneiderbauer_wall_heat_flux", lambda us, *args: np.zeros_like(us))
+    s.conv = None
+    n = s.n
+    st.theta = np.full(n, 0.01)
+    for _ in range(200):
+        c = dict(a=np.full(n, alpha), g0=np.full(n, g0), beta=np.full(n, beta), gus2=np.full(n, shear2),
+                 pf=np.zeros(n), mukc=section.gidaspow_viscosity(alpha, rho, d, st.theta, g0, e))
+        theta = s.granular_temperature(st, c)
+        done = np.max(np.abs(theta - st.theta)) < 1e-12 * expect
+        st.theta = theta
+        if done:
+            break
+    assert np.allclose(st.theta, expect, rtol=1e-6), (st.theta.min(), st.theta.max(), expect)
