@@ -55,6 +55,10 @@ def test_inlet_is_the_papers_uniform_suspension_with_power_law_profiles():
     assert np.sum(st.us * s.A) / s.Atot == pytest.approx(us, rel=1e-12)
     assert np.sum(st.ug * s.A) / s.Atot == pytest.approx(pb.u_g / (1 - a), rel=1e-12)
     assert st.ug.max() > 1.1 * st.ug.min()           # a profile, not a plug
+    # the 1/7-power shape (1 − r/R)^(1/7) of eqs. 20–21 in both phases, cell by cell
+    shape = (1.0 - np.hypot(s.sec.cz, s.sec.cy) / (0.5 * pb.diameter)) ** (1.0 / 7.0)
+    assert np.allclose(st.us / st.us.max(), shape / shape.max(), rtol=1e-12)
+    assert np.allclose(st.ug / st.ug.max(), shape / shape.max(), rtol=1e-12)
 
 
 @pytest.fixture(scope="module")
