@@ -3,7 +3,9 @@
 - terminal settling velocity vs the root of the Schiller–Naumann force balance (brentq) and
   vs fluids.drag.v_terminal (an independent drag curve);
 - stiffness: a 1 µm particle in a linear shear flow with Δt/τ_p = 10^4;
-- the fluid impulse J over a step equals m Δu − m g′Δt (not F(u_n)Δt).
+- the fluid impulse J over a step equals m Δu − m g′Δt (not F(u_n)Δt);
+- a step with Saffman–Mei and Magnus lift in a shear flow against an ODE solution (solve_ivp)
+  with the forces written out from the seed's equations.
 """
 
 import math
@@ -118,3 +120,49 @@ def test_spin_relaxes_to_half_the_vorticity_with_the_stokes_time_scale():
     tau_r = rho_p * d * d / (60.0 * MU)  # I_p/(pi mu d^3) in the Stokes regime (Re_r << 32)
     advance(np.zeros(3), np.zeros(3), omega, np.zeros(3), vort, tau_r, prm, np.zeros(3))
     assert omega[2] == pytest.approx(-100.0 * (1.0 - math.exp(-1.0)), rel=1e-12)
+
+
+@pytest.mark.parametrize("lift", ["saffman", "magnus", "both"])
+def test_lifted_step_vs_an_ode_solution_with_the_forces_written_out(lift):
+    """One step with Saffman–Mei and/or Magnus lift and gravity in a shear flow U = G y e_x
+    against scipy's solve_ivp of du/dt = (u_F − u)/τ_p + F_LS/m + F_LR/m + g′, dx/dt = u, the
+    forces written out here (Schiller–Naumann drag, Saffman's 4.1126/√Re_S with Mei's f, Lun &
+    Liu's C_LR; seed eqs. 3–9) with their coefficients taken at the step's start, as the step
+    takes them: velocity and position to 1e-9.  The lift moves the step by far more than that,
+    and a lagging particle's Saffman lift points to the faster fluid (+y)."""
+    from scipy.integrate import solve_ivp
+
+    from .test_particles_forces import lun_liu, mei_f, sn_cd
+
+    d, rho_p, shear = 200e-6, 1020.0, 500.0
+    saffman, magnus = lift != "magnus", lift != "saffman"
+    advance = make_motion(PhysicsOptions(saffman_mei_lift=saffman, magnus_lift=magnus, rotation=True))
+    prm = params(d, rho_p)
+    uf, vort = np.array([10.0, 0.0, 0.0]), np.array([0.0, 0.0, -shear])  # ∇×(G y e_x) = −G e_z
+    u0, w0 = np.array([9.4, 0.15, -0.05]), np.array([0.0, 0.0, 120.0])
+    m = rho_p * math.pi * d**3 / 6.0
+    slip = float(np.linalg.norm(uf - u0))
+    re_p, re_s = RHO * d * slip / MU, RHO * d * d * shear / MU
+    tau = rho_p * d * d / (18.0 * MU) / (sn_cd(re_p) * re_p / 24.0)
+    k_s = 0.5 * RHO * math.pi / 4 * d**3 * 4.1126 / math.sqrt(re_s) * mei_f(re_p, re_s) / m if saffman else 0.0
+    big_omega = 0.5 * vort - w0
+    re_r = RHO * d * d * float(np.linalg.norm(big_omega)) / MU
+    k_m = (0.5 * RHO * math.pi / 4 * d * d * lun_liu(re_p, re_r) * slip / (float(np.linalg.norm(big_omega)) * m)
+           if magnus else 0.0)
+    g_red = np.array([0.0, -prm[P_GRAV], 0.0])
+
+    def rhs(t, y):
+        r = uf - y[3:]
+        return np.concatenate([y[3:], r / tau + k_s * np.cross(r, vort) + k_m * np.cross(big_omega, r) + g_red])
+
+    dt = 0.25 * tau
+    sol = solve_ivp(rhs, (0.0, dt), np.concatenate([np.zeros(3), u0]), method="DOP853", rtol=1e-13, atol=1e-16)
+    pos, vel, omega, imp = np.zeros(3), u0.copy(), w0.copy(), np.zeros(3)
+    advance(pos, vel, omega, uf, vort, dt, prm, imp)
+    assert vel == pytest.approx(sol.y[3:, -1], rel=1e-9, abs=1e-9 * slip)
+    assert pos == pytest.approx(sol.y[:3, -1], rel=1e-9, abs=1e-9 * slip * dt)
+    plain_pos, plain_vel = np.zeros(3), u0.copy()
+    make_motion(TRANSLATION_ONLY)(plain_pos, plain_vel, np.zeros(3), uf, vort, dt, prm, np.zeros(3))
+    assert np.abs(vel - plain_vel).max() > 1e-5 * slip
+    if lift == "saffman":
+        assert vel[1] > plain_vel[1]
