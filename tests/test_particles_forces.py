@@ -119,7 +119,9 @@ def test_saffman_force_vs_saffman_1965_closed_form(slip, shear):
 
 def test_lift_directions_in_simple_shear_vs_hand_cross_products():
     """U = G y e_x, lagging particle (u_rel = +Δu e_x): ω_F = −G e_z, Saffman lift toward the faster fluid (+y);
-    a non-spinning particle (ω_p = 0, Ω = ½ω_F) gets a Magnus lift toward the slower fluid (−y)."""
+    a non-spinning particle (ω_p = 0, Ω = ½ω_F) gets a Magnus lift toward the slower fluid (−y).
+    The directions follow from the cross products written here and positive coefficients; the
+    kernel's lifted step is checked against an ODE solution in test_particles_motion.py."""
     g, du, h = 200.0, 0.1, 1e-3
     velocity = lambda x: np.array([g * x[1], 0.0, 0.0])  # noqa: E731
     grad = np.array([[(velocity(h * e)[i] - velocity(-h * e)[i]) / (2 * h) for e in np.eye(3)] for i in range(3)])
@@ -162,6 +164,8 @@ def test_rotational_lift_force_vs_seed_eq8_and_rubinow_keller_1961(slip, spin):
     c_lr = pf.lun_liu_1997_lift_coefficient(re_p, re_r)
     cross = np.cross(big_omega, u_rel)
     force = 0.5 * RHO_F * math.pi / 4 * D**2 * c_lr * np.linalg.norm(u_rel) * cross / np.linalg.norm(big_omega)
+    # the seed's eq. 8 rearranged (algebra: Re_p/Re_r = |u_rel|/(D|Ω|)); the code is tested below,
+    # where Lun & Liu's C_LR = Re_r/Re_p must give Rubinow & Keller's force
     assert force == pytest.approx(math.pi / 8 * RHO_F * D**3 * re_p / re_r * c_lr * cross, rel=1e-12)
     if re_p <= 1.0:
         assert force == pytest.approx(math.pi / 8 * RHO_F * D**3 * cross, rel=1e-12)
