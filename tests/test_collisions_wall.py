@@ -444,6 +444,122 @@ def test_impact_angle_sensitivity_effective_vs_nominal():
     assert np.all(np.abs(speed_eff - speed_nom) < 0.05)
 
 
+def _facet_rebound(alpha, gamma, e, mu):
+    """Rebound (v_t′, v_n′) in the real wall's frame of a non-rotating sphere of unit speed hitting,
+    at angle α to the real wall, a flat facet tilted by γ (angle α + γ to the facet); numpy arrays.
+
+    In the facet's frame (tangent t′ along the motion, normal n′ into the fluid) the sphere comes in
+    with u = cos(α + γ), v = −sin(α + γ) and leaves with v′ = e sin(α + γ) and, from the 2-D impulse
+    equations (Sommerfeld & Huber 1999; Crowe et al. 2012), u′ = 5u/7 if non-sliding,
+    |u| ≤ (7/2) μ (1 + e) |v| (the contact point stops slipping: u − (2/7) u), else
+    u′ = u − sgn(u) μ (1 + e) |v|.  Rotated back by γ: t′ = cos γ t₀ + sin γ n₀,
+    n′ = −sin γ t₀ + cos γ n₀.  Written out here independently of the kernel.
+    """
+    a = alpha + gamma
+    u, v_in = np.cos(a), np.sin(a)
+    stick = np.abs(u) <= 3.5 * mu * (1 + e) * v_in
+    u1 = np.where(stick, u - 2.0 / 7.0 * u, u - np.sign(u) * mu * (1 + e) * v_in)
+    v1 = e * v_in
+    return u1 * np.cos(gamma) - v1 * np.sin(gamma), u1 * np.sin(gamma) + v1 * np.cos(gamma), stick
+
+
+@lru_cache(maxsize=None)
+def _make_rough_impacts(options):
+    kernel = cw.make_wall_collision(options)
+
+    @njit
+    def run(alpha, dgamma, n, seed, vt, vn, vb, status):
+        """n impacts at angle alpha [rad], speed 10 m/s, no spin, on the pipe bottom (n₀ = +e_y,
+        t₀ = +e_x); one rng key per impact.  Fills v_t′, v_n′, the lateral v_z′ and the status."""
+        R, r_p, V = 0.015, 1e-4, 10.0
+        pos = np.empty(3)
+        vel = np.empty(3)
+        omega = np.empty(3)
+        uf = np.zeros(3)
+        dv = np.zeros(3)
+        for i in range(n):
+            pos[0] = 0.0
+            pos[1] = -(R - r_p)
+            pos[2] = 0.0
+            vel[0] = V * math.cos(alpha)
+            vel[1] = -V * math.sin(alpha)
+            vel[2] = 0.0
+            omega[:] = 0.0
+            rng = cr.rng_state(seed, 0, i, cr.STREAM_WALL)
+            status[i] = kernel(pos, vel, omega, uf, dv, r_p, R, dgamma, 0.0, rng)
+            vt[i] = vel[0] / V
+            vn[i] = vel[1] / V
+            vb[i] = vel[2] / V
+
+    return run
+
+
+@pytest.mark.parametrize("alpha_deg,dgamma_deg,shadow,angle", [
+    (5.0, 5.0, "weighted", "effective"),  # grazing: shadow effect strong, 4 % of impacts end in contact
+    (15.0, 10.0, "weighted", "effective"),  # e_w, μ_w across their 20° kink
+    (55.0, 10.0, "weighted", "effective"),  # 44 % of the facets non-sliding
+    (5.0, 5.0, "rejection", "effective"),
+    (15.0, 10.0, "weighted", "nominal"),
+])
+def test_rough_wall_rebound_statistics_vs_quadrature_over_facet_angle(alpha_deg, dgamma_deg, shadow, angle):
+    """Rough wall, in-plane roughness only, one impact per call (lateral_roughness off,
+    max_impacts = 1, v_min = 0, no spin before impact): the mean and standard deviation of the
+    rebound angle β = atan2(v_n′, v_t′), the mean velocity ratios v_n′/|v_n| and v_t′/v_t and the
+    fraction of contacts from 2·10⁵ kernel calls equal the integrals over the roughness angle γ of
+    the rebound from a single flat facet tilted by γ (``_facet_rebound``) with the facet pdf
+    f(γ) ∝ N(γ; 0, Δγ) sin(α + γ) (shadow effect "weighted": Sommerfeld 2003; Sommerfeld & Kussin
+    2004) or ∝ N(γ; 0, Δγ) (shadow effect "rejection": Sommerfeld & Huber 1999), 0 < α + γ < π,
+    and e_w = max(0.8, 1 − 0.01 α_c), μ_w = max(0.1, 0.4 − 0.015 α_c) at α_c = α + γ ("effective")
+    or α ("nominal").  A facet whose rebound still points into the real wall (v_n′ ≤ 0) gives, with
+    max_impacts = 1, the contact regime, written out exactly: the incoming sphere on the smooth
+    wall with e = 0 and μ_w(α), sliding to u′ = cos α − μ_w sin α or, if cos α ≤ (7/2) μ_w sin α,
+    rolling at 5/7 cos α; β = 0 (with more impacts per call the next facet's pdf depends on the
+    first rebound, no longer a single integral).  Within 4 Monte-Carlo standard errors (computed
+    from the samples)."""
+    options = cw.WallOptions(shadow_effect=shadow, impact_angle=angle, lateral_roughness=False, max_impacts=1)
+    a, dg = alpha_deg * DEG, dgamma_deg * DEG
+    n = 200_000
+    vt, vn, vb, status = np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.int64)
+    _make_rough_impacts(options)(a, dg, n, 21, vt, vn, vb, status)
+    assert np.all(np.isin(status, [cw.WALL_REBOUND, cw.WALL_SLIDING, cw.WALL_ROLLING]))
+    assert np.all(vb == 0.0)  # in-plane problem
+
+    # quadrature over the facet angle (fine trapezoid; the integrand jumps at the contact boundary)
+    g = np.linspace(-a, min(math.pi - a, 12 * dg), 400_001)
+    f = np.exp(-0.5 * (g / dg) ** 2) * (np.sin(a + g) if shadow == "weighted" else 1.0)
+    f /= np.trapezoid(f, g)
+    a_c = np.degrees(a + g) if angle == "effective" else np.full_like(g, alpha_deg)
+    qt, qn, _ = _facet_rebound(a, g, np.maximum(0.8, 1 - 0.01 * a_c), np.maximum(0.1, 0.4 - 0.015 * a_c))
+    contact = qn <= 0.0
+    mu_a = max(0.1, 0.4 - 0.015 * alpha_deg)
+    slide = math.cos(a) - mu_a * math.sin(a)
+    qt = np.where(contact, 5 / 7 * math.cos(a) if math.cos(a) <= 3.5 * mu_a * math.sin(a) else slide, qt)
+    qn = np.where(contact, 0.0, qn)
+    q_beta = np.degrees(np.arctan2(qn, qt))
+
+    def expect(x):
+        return np.trapezoid(x * f, g)
+
+    beta = np.degrees(np.arctan2(vn, vt))
+    m_beta = expect(q_beta)
+    s_beta = math.sqrt(expect((q_beta - m_beta) ** 2))
+    m4 = np.mean((beta - beta.mean()) ** 4)  # standard error of the standard deviation: delta method
+    rn, rt = vn / math.sin(a), vt / math.cos(a)
+    p_contact = expect(contact)
+    checks = {  # name: (Monte Carlo, quadrature, standard error)
+        "mean beta [deg]": (beta.mean(), m_beta, beta.std() / math.sqrt(n)),
+        "std beta [deg]": (beta.std(), s_beta, math.sqrt((m4 - beta.var() ** 2) / (4 * n * beta.var()))),
+        "v_n'/|v_n|": (rn.mean(), expect(qn) / math.sin(a), rn.std() / math.sqrt(n)),
+        "v_t'/v_t": (rt.mean(), expect(qt) / math.cos(a), rt.std() / math.sqrt(n)),
+        "P(contact)": (np.mean(status != cw.WALL_REBOUND), p_contact, math.sqrt(p_contact * (1 - p_contact) / n)),
+    }
+    for name, (mc, quad, se) in checks.items():
+        print(f"{alpha_deg:4.0f} {dgamma_deg:4.0f} {shadow:9s} {angle:9s} {name:16s} MC {mc:.5f} quad {quad:.5f} "
+              f"SE {se:.5f} ({(mc - quad) / se:+.2f} SE)")
+    for name, (mc, quad, se) in checks.items():
+        assert abs(mc - quad) < 4.0 * se, (name, mc, quad, se)
+
+
 # ---------------------------------------------------------------------------------------------
 # contact regime: resting, sliding and rolling on the pipe bottom (§12.11)
 # ---------------------------------------------------------------------------------------------
