@@ -683,6 +683,26 @@ def _peak_ratio(psi, y) -> float:
     return float("inf") if up > 0 else float("nan")
 
 
+def _second_pair(geo: PolarSection, psi_s, level: float = 0.01) -> tuple[float, float]:
+    """The strongest counter-rotating cell beside the main pair, at any strength.
+
+    Cells of the mirror-symmetrised psi_s are found as :func:`count_cells` does, at ``level``
+    (1 %) of max|psi_s| and with no minimum area. In the right half (z > 0) the strongest
+    cell is the main pair's; the second pair is the strongest right-half cell of the other
+    sign. Returns (|peak| / max|psi_s| [1], y/R of its peak [1]); (0, NaN) if there is none.
+    The study's count keeps only cells above 10 % of the maximum and 5 % of the section, so
+    a weak upper or lower pair shows here first."""
+    if not np.max(np.abs(psi_s)) > 0.0:
+        return 0.0, float("nan")
+    right = [c for c in count_cells(psi_s, level, geo.area, geo.y, geo.z) if c["z"] > 0]
+    if not right:
+        return 0.0, float("nan")
+    other = [c for c in right if c["sign"] != right[0]["sign"]]
+    if not other:
+        return 0.0, float("nan")
+    return float(other[0]["peak_fraction"]), float(other[0]["y"]) / geo.radius
+
+
 def _pattern(geo: PolarSection, uy, uz, u_b: float, threshold: float, min_area: float,
              noise_factor: float, segments: int, floor: float, min_strength: float) -> dict:
     """:func:`pattern_metrics` of the Cartesian in-plane velocity uy, uz (nr, nt) [m s-1] on geo,
@@ -701,16 +721,26 @@ def _pattern(geo: PolarSection, uy, uz, u_b: float, threshold: float, min_area: 
         sense = "down on the axis" if right[0]["sign"] > 0 else "up on the axis"
     y, u, sig = _vertical_uy(geo, uy, segments)
     pattern = _sign_runs(u, sig, noise_factor, floor)
+    # the same along the vertical diameter for the solenoidal flow curl(psi e_x) of the raw psi
+    # (its mirror-odd part still carries the noise that _vertical_uy estimates sigma from)
+    ur_raw, ut_raw = _psi_velocity(geo, psi)
+    sth, cth = np.sin(geo.theta)[None, :], np.cos(geo.theta)[None, :]
+    _, u_sol, sig_sol = _vertical_uy(geo, ur_raw * sth + ut_raw * cth, segments)
+    pattern_sol = _sign_runs(u_sol, sig_sol, noise_factor, floor)
     line = _vertical_line(geo, mirror_average(uy, 1))[1]
     centre = 0.5 * (line[geo.nr - 1] + line[geo.nr])   # innermost ring, y = -r_0 and +r_0
     ur, ut = _psi_velocity(geo, psi_s)
     interior = np.hypot(ur, ut)[:-1]
+    second, second_y = _second_pair(geo, psi_s)
     return {
         "count_raw": len(raw),
         "count_symmetrised": len(cells),
         "mode_index": azimuthal_mode_index(psi_s, geo),
         "uy_sign_pattern": pattern,
         "uy_sign_changes": max(len(pattern) - 1, 0),
+        "uy_solenoidal_sign_pattern": pattern_sol,
+        "second_pair_fraction": second,
+        "second_pair_y": second_y,
         "main_pair_sense": sense,
         "upper_lower_peak_ratio": _peak_ratio(psi_s, geo.y),
         "interior_solenoidal_max": 100.0 * float(interior.max()) / u_b if interior.size else float("nan"),
@@ -755,6 +785,15 @@ def pattern_metrics(ds: xr.Dataset, x: float | None = None, threshold: float = 0
       changes sign once, at the centre (where u_y = 0): pattern [+1, -1] for a > 0 (the flow
       meets at the centre along the vertical diameter), [-1, +1] for a < 0 (it leaves the
       centre); 1 change. More changes mean more than one pair along the diameter.
+    - ``uy_solenoidal_sign_pattern``: the same sign pattern for the u_y of the solenoidal flow
+      curl(psi e_x) (psi of the raw field): the divergent in-plane flow that the axial
+      development drives (div u = -du_x/dx) is left out, so a sign change here is a second
+      pair of cells.
+    - ``second_pair_fraction`` [1] and ``second_pair_y`` [1]: the strongest cell of psi_s in
+      the right half that turns against the main pair, at any strength (:func:`_second_pair`:
+      cells down to 1 % of max|psi_s|, no minimum area): its |peak| / max|psi_s| and the y/R
+      of its peak (0 and NaN if there is none); weak pairs below the count's threshold show
+      here.
     - ``main_pair_sense``: "up on the axis" or "down on the axis", the rotation sense of the
       strongest cell of psi_s in the right half (z > 0): clockwise (psi < 0) turns upward on
       its side towards the vertical diameter and downward at the side wall ("up on the axis",
@@ -824,7 +863,8 @@ def upper_lower_peak_ratio(ds: xr.Dataset, x: float | None = None, symmetrise: b
 
 
 _NUMERIC_PATTERN_KEYS = ("count_raw", "count_symmetrised", "mode_index", "uy_sign_changes",
-                         "upper_lower_peak_ratio", "interior_solenoidal_max", "strength", "uy_centre")
+                         "upper_lower_peak_ratio", "interior_solenoidal_max", "strength", "uy_centre",
+                         "second_pair_fraction")
 
 
 def _agreement(values) -> tuple[Any, float]:
@@ -861,7 +901,7 @@ def replica_pattern_metrics(replicas, x: float | None = None, template: xr.Datas
     - ``n``: number of replicas; ``replicas``: the list of their metric dicts;
     - ``mean`` / ``stderr``: for each numeric metric (count_raw, count_symmetrised,
       mode_index, uy_sign_changes, upper_lower_peak_ratio, interior_solenoidal_max, strength,
-      uy_centre) the mean over the replicas and its standard error std(ddof=1)/sqrt(n)
+      uy_centre, second_pair_fraction) the mean over the replicas and its standard error std(ddof=1)/sqrt(n)
       (NaN for n = 1), in the metric's units;
     - ``count``: the most common symmetrised count, ``count_agreement``: the fraction of the
       replicas giving it; likewise ``count_raw`` / ``count_raw_agreement``,

@@ -157,8 +157,8 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
         coll_se = rec.metrics.get("coll_y_se")
         rows.append({"scene": scene, "variant": label, "paper": paper_text,
                      **{k: rec.metrics.get(k) for k in ("cells", "pattern_cells_sym", "pattern_index", "uy_pattern",
-                                                        "sense", "strength", "interior", "peak_ratio", "dpdx",
-                                                        "k_axis")},
+                                                        "sense", "pattern_second", "strength", "interior",
+                                                        "peak_ratio", "dpdx", "k_axis")},
                      "coll_y": (f"{coll:+.2g} ± {coll_se:.1g}" if coll is not None and math.isfinite(coll)
                                 else None),
                      "matches": _matches(rec.metrics.get("cells"), rec.metrics.get("sense"), paper_cells,
@@ -168,6 +168,7 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
                Column("pattern_cells_sym", "cells (symmetrised; replica agreement)"),
                Column("pattern_index", "sin2θ/cosθ index ± replicas"),
                Column("uy_pattern", "u_y signs bottom→top"), Column("sense", "main pair"),
+               Column("pattern_second", "second pair [% of max ψ_s], centre y/R"),
                Column("strength", "strength [% U0]", "{:.3g}"), Column("interior", "interior max [% U0]", "{:.3g}"),
                Column("peak_ratio", "ψ upper/lower", "{:.2f}"), Column("dpdx", "-dp/dx [Pa/m]", "{:.4g}"),
                Column("k_axis", "axis k / single-phase", "{:.2f}"),
@@ -186,7 +187,9 @@ def study_scenes_ablation(args, outdir: Path, t_start: float) -> int:
         "amplitude of sin 2θ over cos θ in the symmetrised stream function (> 1 four-cell-like); u_y "
         "signs = the signs of the mirror-even vertical gas velocity along the vertical diameter from the "
         "bottom wall up (four cells: one change); main pair = rotation sense of the strongest cell "
-        "pair (\"up on the axis\" is the paper's collision-free two-cell sense); strength = largest "
+        "pair (\"up on the axis\" is the paper's collision-free two-cell sense); second pair = the "
+        "strongest cell turning against the main pair at any strength, in % of the symmetrised stream "
+        "function's maximum, and the y/R of its centre (the count keeps only cells above 10 %); strength = largest "
         "in-plane gas speed; interior max = largest speed of the solenoidal part outside the wall ring; "
         "ψ upper/lower = peak ratio of the symmetrised stream function; axis k = gas k on the axis over "
         "its single-phase value on the same grid; collision force y = the pipe integral of the net "

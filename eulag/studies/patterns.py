@@ -22,10 +22,11 @@ PAPER_PATTERN = {
 PAPER_SENSE = {"c": "up on the axis", "g": "up on the axis"}
 #: the pattern metrics of a scene row (eulag.analysis.pattern_metrics on the mirror-symmetrised
 #: section, error bars from the replicas of the final passes where the dataset has them)
-PATTERN_KEYS = ("cells_sym", "index", "uy_pattern", "sense", "interior", "coll")
+PATTERN_KEYS = ("cells_sym", "index", "uy_pattern", "sense", "second", "interior", "coll")
 PATTERN_COLUMNS = (Column("cells_sym", "cells (symmetrised; replica agreement)"),
                    Column("index", "sin2θ/cosθ index"), Column("uy_pattern", "u_y signs bottom→top"),
-                   Column("sense", "main pair"), Column("interior", "interior max [% U0]"),
+                   Column("sense", "main pair"), Column("second", "second pair [% of max ψ_s], centre y/R"),
+                   Column("interior", "interior max [% U0]"),
                    Column("coll", "collision force x, y [N]"))
 
 
@@ -33,7 +34,9 @@ def pattern_columns(ds, x: float) -> dict:
     """The pattern cells of a scene row: symmetrised cell count (with the fraction of the
     replicas that agree), the sin 2θ / cos θ index and the interior solenoidal maximum (± the
     replicas' standard error), the u_y sign pattern on the vertical diameter, the main pair's
-    rotation sense and the pipe integral of the collision force on the particles."""
+    rotation sense, the second pair (the strongest cell turning against the main pair at any
+    strength, in % of max ψ_s ± the replicas' standard error, and the y/R of its centre; "none")
+    and the pipe integral of the collision force on the particles."""
     import math
 
     from eulag import analysis as an
@@ -55,7 +58,14 @@ def pattern_columns(ds, x: float) -> dict:
     if "particle_collision_force_total_x" in ds:
         coll = ", ".join(f"{float(ds[f'particle_collision_force_total_{c}']):+.2g} ± "
                          f"{float(ds[f'particle_collision_force_total_{c}_stderr']):.1g}" for c in "xy")
-    return {"cells_sym": cells, "index": pm("mode_index", ".2f"),
+    if m["second_pair_fraction"] > 0.0:
+        second = format(100.0 * m["second_pair_fraction"], ".2g")
+        if rm is not None and math.isfinite(rm["stderr"]["second_pair_fraction"]):
+            second += " ± " + format(100.0 * rm["stderr"]["second_pair_fraction"], ".1g")
+        second += f", {m['second_pair_y']:+.2f}"
+    else:
+        second = "none"
+    return {"cells_sym": cells, "index": pm("mode_index", ".2f"), "second": second,
             "uy_pattern": an.sign_text(m["uy_sign_pattern"]),
             "sense": m["main_pair_sense"] or "-", "interior": pm("interior_solenoidal_max", ".3g"), "coll": coll}
 

@@ -67,7 +67,14 @@ def report(path):
               f"{100 * (raw[i] - sol[i]) / u_b:+.3f}")
     m = A.pattern_metrics(ds, x)
     print(f"  study metrics: cells {m['count_symmetrised']}, index {m['mode_index']:.2f}, "
-          f"u_y signs {A.sign_text(m['uy_sign_pattern'])}, {m['main_pair_sense']}")
+          f"u_y signs {A.sign_text(m['uy_sign_pattern'])} (solenoidal {A.sign_text(m['uy_solenoidal_sign_pattern'])}), "
+          f"{m['main_pair_sense']}; second pair {100 * m['second_pair_fraction']:.1f} % at y/R {m['second_pair_y']:+.2f}")
+    if reps:
+        rm = A.replica_pattern_metrics(reps, x, template=ds)
+        for i, r in enumerate(rm["replicas"]):
+            print(f"  replica {i + 1}: cells {r['count_symmetrised']}, index {r['mode_index']:.2f}, u_y signs "
+                  f"{A.sign_text(r['uy_sign_pattern'])} (solenoidal {A.sign_text(r['uy_solenoidal_sign_pattern'])}), "
+                  f"second pair {100 * r['second_pair_fraction']:.1f} % at y/R {r['second_pair_y']:+.2f}")
 
 
 if __name__ == "__main__":
