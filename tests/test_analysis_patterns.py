@@ -459,3 +459,22 @@ def test_replica_error_bars_and_agreement():
     assert noisy["pooled"]["count_raw"] == 2
     assert abs(noisy["pooled"]["interior_solenoidal_max"] - clean) < \
         0.5 * abs(noisy["mean"]["interior_solenoidal_max"] - clean)
+
+
+def test_scene_row_counts_the_replicas_that_give_the_datasets_own_count():
+    """The scene table's cell count (eulag.studies.patterns.pattern_columns): four cells in the
+    dataset and replicas with 2, 2 and 4 cells read "4 (1/3 replicas)" (the most common replica
+    count, 2, is not the dataset's); the second pair of the four-cell flow is the other pair at
+    equal strength."""
+    from eulag.studies.patterns import pattern_columns
+
+    m = mesh()
+    four = pattern_field(m, "four")[:2]
+    two = pattern_field(m, "two_up")[:2]
+    ds = mesh_dataset(m, *four)
+    reps = [two, two, four]
+    ds["replica_gas_uy"] = (("replica", "r", "theta"), np.stack([r[0] for r in reps]))
+    ds["replica_gas_uz"] = (("replica", "r", "theta"), np.stack([r[1] for r in reps]))
+    row = pattern_columns(ds, L / 2)
+    assert row["cells_sym"] == "4 (1/3 replicas)"
+    assert row["second"].startswith("1e+02 ± ")

@@ -31,8 +31,8 @@ PATTERN_COLUMNS = (Column("cells_sym", "cells (symmetrised; replica agreement)")
 
 
 def pattern_columns(ds, x: float) -> dict:
-    """The pattern cells of a scene row: symmetrised cell count (with the fraction of the
-    replicas that agree), the sin 2θ / cos θ index and the interior solenoidal maximum (± the
+    """The pattern cells of a scene row: symmetrised cell count (with the number of replicas
+    that give the same count), the sin 2θ / cos θ index and the interior solenoidal maximum (± the
     replicas' standard error), the u_y sign pattern on the vertical diameter, the main pair's
     rotation sense, the second pair (the strongest cell turning against the main pair at any
     strength, in % of max ψ_s ± the replicas' standard error, and the y/R of its centre; "none")
@@ -53,7 +53,9 @@ def pattern_columns(ds, x: float) -> dict:
 
     cells = str(m["count_symmetrised"])
     if rm is not None:
-        cells += f" ({rm['count_agreement'] * rm['n']:.0f}/{rm['n']} replicas)"
+        # the replicas that give the dataset's own count (the most common replica count may differ)
+        agree = sum(r["count_symmetrised"] == m["count_symmetrised"] for r in rm["replicas"])
+        cells += f" ({agree}/{rm['n']} replicas)"
     coll = None
     if "particle_collision_force_total_x" in ds:
         coll = ", ".join(f"{float(ds[f'particle_collision_force_total_{c}']):+.2g} ± "
