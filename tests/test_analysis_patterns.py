@@ -477,4 +477,4 @@ def test_scene_row_counts_the_replicas_that_give_the_datasets_own_count():
     ds["replica_gas_uz"] = (("replica", "r", "theta"), np.stack([r[1] for r in reps]))
     row = pattern_columns(ds, L / 2)
     assert row["cells_sym"] == "4 (1/3 replicas)"
-    assert row["second"].startswith("1e+02 ± ")
+    assert row["second"].startswith("100 ± ")

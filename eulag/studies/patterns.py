@@ -61,9 +61,9 @@ def pattern_columns(ds, x: float) -> dict:
         coll = ", ".join(f"{float(ds[f'particle_collision_force_total_{c}']):+.2g} ± "
                          f"{float(ds[f'particle_collision_force_total_{c}_stderr']):.1g}" for c in "xy")
     if m["second_pair_fraction"] > 0.0:
-        second = format(100.0 * m["second_pair_fraction"], ".2g")
+        second = format(100.0 * m["second_pair_fraction"], ".3g")
         if rm is not None and math.isfinite(rm["stderr"]["second_pair_fraction"]):
-            second += " ± " + format(100.0 * rm["stderr"]["second_pair_fraction"], ".1g")
+            second += " ± " + format(100.0 * rm["stderr"]["second_pair_fraction"], ".2g")
         second += f", {m['second_pair_y']:+.2f}"
     else:
         second = "none"
