@@ -509,7 +509,8 @@ def test_rough_wall_rebound_statistics_vs_quadrature_over_facet_angle(alpha_deg,
     the rebound from a single flat facet tilted by γ (``_facet_rebound``) with the facet pdf
     f(γ) ∝ N(γ; 0, Δγ) sin(α + γ) (shadow effect "weighted": Sommerfeld 2003; Sommerfeld & Kussin
     2004) or ∝ N(γ; 0, Δγ) (shadow effect "rejection": Sommerfeld & Huber 1999), 0 < α + γ < π,
-    and e_w = max(0.8, 1 − 0.01 α_c), μ_w = max(0.1, 0.4 − 0.015 α_c) at α_c = α + γ ("effective")
+    and e_w = max(0.8, 1 − 0.01 α_c), μ_w = max(0.1, 0.4 − 0.015 α_c) (the seed paper's fits to
+    Sommerfeld & Huber 1999, α_c in degrees; docs/physics.md) at α_c = α + γ ("effective")
     or α ("nominal").  A facet whose rebound still points into the real wall (v_n′ ≤ 0) gives, with
     max_impacts = 1, the contact regime, written out exactly: the incoming sphere on the smooth
     wall with e = 0 and μ_w(α), sliding to u′ = cos α − μ_w sin α or, if cos α ≤ (7/2) μ_w sin α,
